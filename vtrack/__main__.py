@@ -1,0 +1,5 @@
+import sys
+
+from vtrack.cli import main
+
+sys.exit(main())

@@ -1,0 +1,69 @@
+"""Kalman filter steps (SEEDS 1.1, 1.2), written once for one target or a stack of N targets.
+
+Every array may carry leading batch axes: x (..., n), P (..., n, n), z (..., m),
+H (..., m, n), R (..., m, m). The tracker steps all vehicles' filters with one call; the
+seed experiments call the same functions with no batch axis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vtrack.estimation.linalg import NotPositiveDefiniteError, symmetrize
+
+_T = lambda a: np.swapaxes(a, -1, -2)  # noqa: E731  (transpose of the last two axes)
+
+
+@dataclass
+class Innovation:
+    """What an update saw: innovation nu = z - h(x-), its covariance S, gain K, NIS nu' S^-1 nu."""
+
+    nu: np.ndarray
+    S: np.ndarray
+    K: np.ndarray
+    nis: np.ndarray
+
+
+def kf_predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray,
+               fx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Predict: x- = F x (or the given fx = f(x)),  P- = F P F' + Q  (SEEDS 1.1; seed 001 eq. 23,
+    with Q added once)."""
+    x_pred = np.einsum("...ij,...j->...i", F, x) if fx is None else fx
+    return x_pred, symmetrize(F @ P @ _T(F) + Q)
+
+
+def kf_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np.ndarray,
+              mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, Innovation]:
+    """Update with innovation nu (= z - h(x-), already wrapped for angles), Joseph form:
+
+        S = H P H' + R,  K = P H' S^-1,  x = x- + K nu,
+        P = (I - K H) P (I - K H)' + K R K',  P <- (P + P')/2      (SEEDS 1.1)
+
+    `mask` (..., m) marks the rows present; a missing row gets a zero H row, zero innovation
+    and a decoupled unit variance, so it changes nothing (this is exact, and lets a batch of
+    targets with different missing rows share one call). The gain comes from a Cholesky
+    solve; an S that is not positive definite raises NotPositiveDefiniteError.
+    """
+    if mask is not None:
+        keep = mask.astype(float)
+        nu = np.where(mask, nu, 0.0)
+        H = H * keep[..., :, None]
+        outer = keep[..., :, None] * keep[..., None, :]
+        R = R * outer + np.eye(R.shape[-1]) * (1.0 - keep[..., :, None])
+    PHt = P @ _T(H)
+    S = symmetrize(H @ PHt + R)
+    try:
+        L = np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        raise NotPositiveDefiniteError("innovation covariance S is not positive definite") from None
+    # K' = S^-1 (H P) via the Cholesky factor: two triangular solves.
+    Kt = np.linalg.solve(_T(L), np.linalg.solve(L, _T(PHt)))
+    K = _T(Kt)
+    x_new = x + np.einsum("...ij,...j->...i", K, nu)
+    A = np.eye(P.shape[-1]) - K @ H
+    P_new = symmetrize(A @ P @ _T(A) + K @ R @ Kt)
+    w = np.linalg.solve(L, nu[..., None])[..., 0]
+    nis = np.einsum("...i,...i->...", w, w)
+    return x_new, P_new, Innovation(nu=nu, S=S, K=K, nis=nis)

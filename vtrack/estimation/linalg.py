@@ -1,0 +1,87 @@
+"""Numerical building blocks: angle wrapping, safe Cholesky, QR 'tria', rank-1 up/down-dates."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class EstimationError(ValueError):
+    """A filter met something it cannot process (non-finite input, non-PD covariance)."""
+
+
+class NotPositiveDefiniteError(EstimationError):
+    """A covariance that must be positive definite is not."""
+
+
+class DowndateError(EstimationError):
+    """A Cholesky rank-1 downdate would make the factor indefinite (SEEDS 1.5)."""
+
+
+def wrap_angle(a: np.ndarray | float) -> np.ndarray:
+    """Wrap angles to (-pi, pi]: wrap(a) = pi - ((pi - a) mod 2 pi)  (SEEDS notation)."""
+    return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), 2.0 * np.pi)
+
+
+def symmetrize(P: np.ndarray) -> np.ndarray:
+    """P <- (P + P^T) / 2 over the last two axes (works on stacks of matrices)."""
+    return 0.5 * (P + np.swapaxes(P, -1, -2))
+
+
+def cholesky(P: np.ndarray, what: str = "covariance") -> np.ndarray:
+    """Lower Cholesky factor of a (stack of) SPD matrix; a clear error if it is not SPD."""
+    if not np.all(np.isfinite(P)):
+        raise EstimationError(f"{what} has non-finite entries")
+    try:
+        return np.linalg.cholesky(P)
+    except np.linalg.LinAlgError:
+        eig = np.linalg.eigvalsh(symmetrize(P))
+        raise NotPositiveDefiniteError(
+            f"{what} is not positive definite (smallest eigenvalue {eig.min():.3g})"
+        ) from None
+
+
+def require_finite(a: np.ndarray, what: str) -> np.ndarray:
+    """Return `a` as float array, raising EstimationError if any entry is NaN or inf."""
+    a = np.asarray(a, dtype=float)
+    if not np.all(np.isfinite(a)):
+        raise EstimationError(f"{what} has non-finite entries")
+    return a
+
+
+def tria(M: np.ndarray) -> np.ndarray:
+    """Lower-triangular S with S S^T = M M^T, from the QR of M^T, diag(S) >= 0 (SEEDS 1.5)."""
+    r = np.linalg.qr(M.T, mode="r")
+    S = r.T[:, : M.shape[0]]
+    signs = np.where(np.diag(S) < 0, -1.0, 1.0)
+    return S * signs
+
+
+def cholupdate(L: np.ndarray, v: np.ndarray, sign: float = 1.0) -> np.ndarray:
+    """Rank-1 update (sign=+1) or downdate (sign=-1) of a lower Cholesky factor.
+
+    Returns L' with L' L'^T = L L^T + sign * v v^T (SEEDS 1.5). A downdate that would lose
+    positive definiteness raises DowndateError.
+    """
+    L = np.array(L, dtype=float, copy=True)
+    v = np.array(v, dtype=float, copy=True)
+    n = L.shape[0]
+    for k in range(n):
+        r2 = L[k, k] ** 2 + sign * v[k] ** 2
+        if r2 <= 0.0 or not np.isfinite(r2):
+            raise DowndateError("Cholesky downdate lost positive definiteness")
+        r = np.sqrt(r2)
+        c = r / L[k, k]
+        s = v[k] / L[k, k]
+        L[k, k] = r
+        if k + 1 < n:
+            L[k + 1 :, k] = (L[k + 1 :, k] + sign * s * v[k + 1 :]) / c
+            v[k + 1 :] = c * v[k + 1 :] - s * L[k + 1 :, k]
+    return L
+
+
+def spd_root(P: np.ndarray, power: float) -> np.ndarray:
+    """Principal power P^power = U diag(d^power) U^T of an SPD matrix (seed 002's cube root)."""
+    d, U = np.linalg.eigh(symmetrize(P))
+    if d.min() <= 0:
+        raise NotPositiveDefiniteError("matrix root of a matrix that is not positive definite")
+    return (U * d**power) @ U.T
