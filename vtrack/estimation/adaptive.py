@@ -1,4 +1,331 @@
-"""Adaptive filter kinds (ANKF1/ANKF2 of seed 000, fuzzy-R/Q of seed 003, SIIM EKF of seed 004).
+"""Adaptive EKF kinds of seed 000: ANKF1 (innovation-based adaptive estimation, IAE) and ANKF2
+(adaptive fading with measurement-noise scaling, AFKF).
 
-Registered into vtrack.estimation.filters.FILTER_KINDS on import.
+Registered into vtrack.estimation.filters.FILTER_KINDS on import (`make_filter("ankf1", ...)`,
+`make_filter("ankf2", ...)`, `[filter] kind = "ankf1"` in `vtrack filter`).
+
+The seed (Khadour et al. 2019) takes both from Jwo & Weng (2008) but its flowcharts are lost;
+this is the reconstruction of SEEDS.md section 2.4 [A], from Mohamed & Schwarz (1999, IAE)
+and Xia et al. (1994, fading factors). Both filters are the core EKF
+(vtrack.estimation.filters.ExtendedKalmanFilter) whose update is done by the core
+`kalman.kf_update` (Joseph form) with an adapted R (and, for ANKF2, a faded prior P-).
+
+Common part (SEEDS 1.6): every wrapped innovation nu_k = wrap(z_k - h(m-)) of a step with a
+FULL measurement vector is pushed into a ring buffer of the last N innovations, and
+
+    C_hat_k = (1/N) sum_{j=k-N+1..k} nu_j nu_j'         (no mean removal)
+    C_k     = H P- H' + R_nom                            (theoretical innovation covariance)
+
+Until N innovations exist the filters are the plain EKF.
+
+Missing measurement cells (NaN in z, see GaussianFilter.update): a step with only some cells
+present does not enter the window (the window statistics need one fixed measurement vector);
+it is updated with the current adapted noise restricted to the present rows (ANKF1: the last
+R_hat; ANKF2: the last lambda_R, and no fading, lambda_P = 1). A step with no cell present only
+predicts. Before the first adaptation such steps use R_nom, exactly like the EKF.
 """
+
+from __future__ import annotations
+
+import numpy as np
+
+from vtrack.estimation.filters import ExtendedKalmanFilter, register
+from vtrack.estimation.kalman import Innovation, kf_predict, kf_update
+from vtrack.estimation.linalg import symmetrize
+from vtrack.estimation.models import MeasurementModel, MotionModel
+
+__all__ = [
+    "InnovationWindow",
+    "iae_measurement_noise",
+    "fading_factors",
+    "scale_noise",
+    "InnovationAdaptiveEKF",
+    "FadingAdaptiveEKF",
+]
+
+
+# ------------------------------------------------------------------------------ pieces
+
+
+class InnovationWindow:
+    """Ring buffer of the last `size` innovations (SEEDS 1.6).
+
+    `covariance()` is C_hat = (1/N) sum nu nu' over the buffer (no mean removal). `shape` is
+    the shape of one innovation, (m,) for one filter or (..., m) for a stack of filters.
+    """
+
+    def __init__(self, size: int, shape: int | tuple[int, ...]) -> None:
+        if size < 1:
+            raise ValueError(f"innovation window size must be >= 1 (got {size})")
+        shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
+        self.size = int(size)
+        self._buf = np.zeros((self.size,) + shape)
+        self.count = 0                     # innovations pushed so far (not capped)
+
+    @property
+    def full(self) -> bool:
+        """True once `size` innovations have been pushed."""
+        return self.count >= self.size
+
+    def push(self, nu: np.ndarray) -> None:
+        """Store one innovation, overwriting the oldest once the buffer is full."""
+        self._buf[self.count % self.size] = nu
+        self.count += 1
+
+    def covariance(self) -> np.ndarray:
+        """C_hat = (1/N) sum_j nu_j nu_j' over the stored innovations (only when full)."""
+        if not self.full:
+            raise ValueError("innovation window is not full yet")
+        return np.einsum("k...i,k...j->...ij", self._buf, self._buf) / self.size
+
+
+def iae_measurement_noise(C_hat: np.ndarray, HPH: np.ndarray, R_nom: np.ndarray,
+                          r_floor: float) -> np.ndarray:
+    """IAE estimate of R (Mohamed & Schwarz 1999; SEEDS 2.4, ANKF1):
+
+        R_hat = diag(C_hat - H P- H'),  each entry floored at r_floor * diag(R_nom)
+
+    Only the diagonal is kept and it is floored because C_hat - H P- H' can be negative or tiny
+    early on, which makes the filter overconfident (SEEDS 2.6). Returns the diagonal (..., m).
+    """
+    d = np.diagonal(C_hat - HPH, axis1=-2, axis2=-1)
+    floor = r_floor * np.diagonal(R_nom, axis1=-2, axis2=-1)
+    return np.maximum(d, floor)
+
+
+def fading_factors(C_hat: np.ndarray, C: np.ndarray, lambda_max: float,
+                   ratio_min: float, ratio_max: float,
+                   multiple: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Fading and noise-scaling factors of ANKF2 (seed 000 section 4 d; SEEDS 2.4):
+
+        ratio    = tr(C_hat) / tr(C)
+        lambda_P = clip(ratio, 1, lambda_max)             (seed: max{1, tr C_hat / tr C})
+        lambda_R = clip(ratio, ratio_min, ratio_max)      ("single factor", every row), or
+        lambda_R,jj = clip(C_hat_jj / C_jj, ...)          ("multiple factors")
+
+    Returns lambda_P (...,) and lambda_R (..., m).
+    """
+    ratio = np.trace(C_hat, axis1=-2, axis2=-1) / np.trace(C, axis1=-2, axis2=-1)
+    lam_P = np.clip(ratio, 1.0, lambda_max)
+    m = C.shape[-1]
+    if multiple:
+        raw = np.diagonal(C_hat, axis1=-2, axis2=-1) / np.diagonal(C, axis1=-2, axis2=-1)
+    else:
+        raw = np.repeat(np.asarray(ratio)[..., None], m, axis=-1)
+    return lam_P, np.clip(raw, ratio_min, ratio_max)
+
+
+def scale_noise(R: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """R_bar = lambda_R R, written D^1/2 R D^1/2 with D = diag(lambda_R) so that it stays
+    symmetric for a full R (equal to lambda_jj R_jj for the diagonal R of the seeds)."""
+    s = np.sqrt(lam)
+    return R * s[..., :, None] * s[..., None, :]
+
+
+def _int_option(name: str, value: object, lo: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not float(value).is_integer() or value < lo:
+        raise ValueError(f"option {name} must be an integer >= {lo} (got {value!r})")
+    return int(value)
+
+
+def _float_option(name: str, value: object, lo: float, strict: bool = True) -> float:
+    ok = (not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
+          and np.isfinite(value) and (value > lo if strict else value >= lo))
+    if not ok:
+        raise ValueError(f"option {name} must be a number {'>' if strict else '>='} {lo:g} "
+                         f"(got {value!r})")
+    return float(value)
+
+
+def _bool_option(name: str, value: object) -> bool:
+    if isinstance(value, (bool, np.bool_)) or value in (0, 1):
+        return bool(value)
+    raise ValueError(f"option {name} must be true or false (got {value!r})")
+
+
+def _rows(meas: MeasurementModel, full: MeasurementModel) -> np.ndarray:
+    """Indices of the rows of the full measurement vector that `meas` (maybe a subset) holds."""
+    rows = getattr(meas, "rows", None)
+    return np.arange(full.m) if rows is None else np.asarray(rows)
+
+
+# ------------------------------------------------------------------------------ ANKF1
+
+
+class InnovationAdaptiveEKF(ExtendedKalmanFilter):
+    """ANKF1 = EKF + innovation-based adaptive estimation (seed 000 Fig. 1; SEEDS 2.4 [A]).
+
+    Per update, once the window holds N innovations:
+
+        R_hat_k = diag(C_hat_k - H P- H'), floored at r_floor * diag(R_nom)   (adapt_r)
+        x, P    = Joseph-form update with R_hat_k                           (kalman.kf_update)
+        Q_hat_k = K_k C_hat_k K_k'  replaces Q in the next prediction       (adapt_q)
+
+    Options (all optional):
+        window  (int, default 20)      N, the innovation window length
+        r_floor (float, default 0.01)  floor of R_hat as a fraction of diag(R_nom), > 0
+        adapt_r (bool, default true)   estimate R (the IAE of the seed)
+        adapt_q (bool, default false)  also estimate Q (Mohamed & Schwarz); SEEDS 2.5 shows it
+                                       hurts in seed 000's scenario 3a
+
+    Diagnostics after each update: `R_used` (the R of the last update), `R_hat` (diagonal of
+    the latest estimate or None), `Q_hat` (or None), `adapted` (whether the last update used
+    the window).
+    """
+
+    kind = "ankf1"
+
+    def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
+                 P0: np.ndarray, window: int = 20, r_floor: float = 0.01,
+                 adapt_r: bool = True, adapt_q: bool = False) -> None:
+        super().__init__(motion, measurement, x0, P0)
+        self.window = InnovationWindow(_int_option("window", window, 1), measurement.m)
+        self.r_floor = _float_option("r_floor", r_floor, 0.0)
+        self.adapt_r = _bool_option("adapt_r", adapt_r)
+        self.adapt_q = _bool_option("adapt_q", adapt_q)
+        self.R_hat: np.ndarray | None = None
+        self.Q_hat: np.ndarray | None = None
+        self.R_used: np.ndarray = measurement.R.copy()
+        self.adapted = False
+
+    def predict(self, dt: float, u: np.ndarray | None = None) -> None:
+        """EKF prediction; with adapt_q the latest Q_hat replaces the model Q."""
+        Q = self.motion.Q(dt) if self.Q_hat is None else self.Q_hat
+        F = self.motion.F(self.x, dt, u)
+        self.x, self.P = kf_predict(self.x, self.P, F, Q, fx=self.motion.f(self.x, dt, u))
+
+    def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
+        H = meas.H(self.x)
+        nu = meas.residual(z, meas.h(self.x))
+        full = meas.m == self.measurement.m
+        R = meas.R
+        C_hat = None
+        self.adapted = False
+        if full:
+            self.window.push(nu)
+            if self.window.full:
+                C_hat = self.window.covariance()
+                if self.adapt_r:
+                    self.R_hat = iae_measurement_noise(C_hat, H @ self.P @ H.T, meas.R,
+                                                       self.r_floor)
+                self.adapted = True
+        if self.adapt_r and self.R_hat is not None:
+            R = np.diag(self.R_hat[_rows(meas, self.measurement)])
+        self.x, self.P, info = kf_update(self.x, self.P, nu, H, R)
+        if self.adapt_q and C_hat is not None:
+            self.Q_hat = symmetrize(info.K @ C_hat @ info.K.T)
+        self.R_used = R
+        return info
+
+
+# ------------------------------------------------------------------------------ ANKF2
+
+
+class FadingAdaptiveEKF(ExtendedKalmanFilter):
+    """ANKF2 = EKF + adaptive fading with measurement-noise scaling (seed 000 Fig. 2 and
+    section 4 a-d; SEEDS 2.4 [A]).
+
+    The prediction keeps the propagated part Pprop = F P F' apart from Q. Per update, once the
+    window holds N innovations (C computed with the unfaded prior P- = Pprop + Q):
+
+        ratio    = tr(C_hat_k) / tr(C_k)
+        lambda_P = clip(ratio, 1, lambda_max)
+        P-       = lambda_P Pprop + Q          (fade_prior: lambda_P (Pprop + Q))
+        R_bar    = lambda_R R_nom,  lambda_R = clip(ratio, ratio_min, ratio_max)
+                   (multiple_factors: lambda_R,jj = clip(C_hat_jj / C_jj, ...))
+        x, P     = Joseph-form update with P-, R_bar                        (kalman.kf_update)
+
+    Fading compounds from step to step, so lambda_max is kept low (SEEDS 2.6: an AFKF capped
+    at 10 exploded when R was underestimated).
+
+    Options (all optional):
+        window           (int, default 20)     N, the innovation window length
+        lambda_max       (float, default 1.5)  cap of the fading factor, >= 1
+        ratio_min        (float, default 0.01) lower clip of lambda_R, > 0
+        ratio_max        (float, default 100)  upper clip of lambda_R, >= ratio_min
+        multiple_factors (bool, default false) one lambda_R per measurement row
+        fade_prior       (bool, default false) fade Pprop + Q instead of Pprop alone
+
+    Diagnostics after each update: `lambda_P` (float), `lambda_R` ((m,) or None), `R_used`,
+    `adapted`.
+    """
+
+    kind = "ankf2"
+
+    def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
+                 P0: np.ndarray, window: int = 20, lambda_max: float = 1.5,
+                 ratio_min: float = 0.01, ratio_max: float = 100.0,
+                 multiple_factors: bool = False, fade_prior: bool = False) -> None:
+        super().__init__(motion, measurement, x0, P0)
+        self.window = InnovationWindow(_int_option("window", window, 1), measurement.m)
+        self.lambda_max = _float_option("lambda_max", lambda_max, 1.0, strict=False)
+        self.ratio_min = _float_option("ratio_min", ratio_min, 0.0)
+        self.ratio_max = _float_option("ratio_max", ratio_max, self.ratio_min, strict=False)
+        self.multiple_factors = _bool_option("multiple_factors", multiple_factors)
+        self.fade_prior = _bool_option("fade_prior", fade_prior)
+        self._Pprop: np.ndarray | None = None
+        self._Q: np.ndarray | None = None
+        self.lambda_P = 1.0
+        self.lambda_R: np.ndarray | None = None
+        self.R_used: np.ndarray = measurement.R.copy()
+        self.adapted = False
+
+    def predict(self, dt: float, u: np.ndarray | None = None) -> None:
+        """EKF prediction that remembers Pprop = F P F' and Q separately (P- = Pprop + Q)."""
+        F = self.motion.F(self.x, dt, u)
+        Q = self.motion.Q(dt)
+        self.x, Pprop = kf_predict(self.x, self.P, F, np.zeros_like(Q),
+                                   fx=self.motion.f(self.x, dt, u))
+        self._Pprop, self._Q = Pprop, Q
+        self.P = symmetrize(Pprop + Q)
+
+    def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
+        H = meas.H(self.x)
+        nu = meas.residual(z, meas.h(self.x))
+        full = meas.m == self.measurement.m
+        P_prior = self.P
+        self.adapted = False
+        self.lambda_P = 1.0
+        if full:
+            self.window.push(nu)
+            if self.window.full and self._Pprop is not None:
+                C = symmetrize(H @ self.P @ H.T + meas.R)
+                lam_P, lam_R = fading_factors(self.window.covariance(), C, self.lambda_max,
+                                              self.ratio_min, self.ratio_max,
+                                              self.multiple_factors)
+                self.lambda_P, self.lambda_R = float(lam_P), lam_R
+                if self.fade_prior:
+                    P_prior = symmetrize(self.lambda_P * (self._Pprop + self._Q))
+                else:
+                    P_prior = symmetrize(self.lambda_P * self._Pprop + self._Q)
+                self.adapted = True
+        R = meas.R
+        if self.lambda_R is not None:
+            R = scale_noise(meas.R, self.lambda_R[_rows(meas, self.measurement)])
+        self.x, self.P, info = kf_update(self.x, P_prior, nu, H, R)
+        self._Pprop = None     # fading applies once per prediction
+        self.R_used = R
+        return info
+
+
+# ---------------------------------------------------------------------------- registry
+
+_ANKF1_OPTIONS = ("window", "r_floor", "adapt_r", "adapt_q")
+_ANKF2_OPTIONS = ("window", "lambda_max", "ratio_min", "ratio_max", "multiple_factors",
+                  "fade_prior")
+
+
+@register("ankf1", options=_ANKF1_OPTIONS)
+def _ankf1(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray,
+           **options: float) -> InnovationAdaptiveEKF:
+    """EKF + IAE of R (optionally Q); options: window, r_floor, adapt_r, adapt_q."""
+    return InnovationAdaptiveEKF(motion, meas, x0, P0, **options)
+
+
+@register("ankf2", options=_ANKF2_OPTIONS)
+def _ankf2(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray,
+           **options: float) -> FadingAdaptiveEKF:
+    """EKF + adaptive fading and R scaling; options: window, lambda_max, ratio_min, ratio_max,
+    multiple_factors, fade_prior."""
+    return FadingAdaptiveEKF(motion, meas, x0, P0, **options)

@@ -11,7 +11,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
 from vtrack.estimation.kalman import Innovation, kf_predict, kf_update
 from vtrack.estimation.linalg import (
@@ -122,11 +121,13 @@ class SigmaPointKalmanFilter(GaussianFilter):
         S = symmetrize((dY.T * self.rule.Wc) @ dY + meas.R)
         Pxy = (dX.T * self.rule.Wc) @ dY
         L = cholesky(S, "innovation covariance S")
-        K = solve_triangular(L, solve_triangular(L, Pxy.T, lower=True), lower=True, trans="T").T
+        # K = Pxy S^-1 through the factor. numpy's solve, not scipy's solve_triangular: the
+        # latter can take milliseconds per tiny call under a multi-threaded OpenBLAS.
+        K = np.linalg.solve(L.T, np.linalg.solve(L, Pxy.T)).T
         nu = meas.residual(z, ybar)
         self.x = self.x + K @ nu
         self.P = symmetrize(self.P - K @ S @ K.T)
-        w = solve_triangular(L, nu, lower=True)
+        w = np.linalg.solve(L, nu)
         return Innovation(nu=nu, S=S, K=K, nis=np.asarray(w @ w))
 
 
@@ -143,7 +144,11 @@ class _Root:
             except NotPositiveDefiniteError:  # a PSD (singular) Q: any factor works for tria
                 d, U = np.linalg.eigh(symmetrize(M))
                 return U * np.sqrt(np.clip(d, 0.0, None))
-        return spd_root(M, 1.0 / self.p)
+        try:
+            return spd_root(M, 1.0 / self.p)
+        except NotPositiveDefiniteError:  # a PSD (singular) Q or R, as for p = 2 above
+            d, U = np.linalg.eigh(symmetrize(M))
+            return (U * np.clip(d, 0.0, None) ** (1.0 / self.p)) @ U.T
 
     def weight(self, w: float) -> float:
         return float(w) ** (1.0 / self.p)
@@ -159,8 +164,13 @@ class SquareRootUKF(GaussianFilter):
     to reproduce the paper, not as an improved filter.
 
     A downdate that fails (very negative Wc0) falls back to the full-covariance step for that
-    factor and is counted in `fallbacks`.
+    factor and is counted in `fallbacks`. If even that matrix is not positive definite, the
+    filter raises NotPositiveDefiniteError, unless `repair` is set: then the matrix is
+    repaired by clipping its eigenvalues at 1e-10 x the largest (SEEDS 1.3) and the event is
+    counted in `repairs` (seed 002's cube-root variant needs it to run at all).
     """
+
+    repair = False
 
     def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
                  P0: np.ndarray, rule: SigmaPointRule, root: int = 2, kind: str = "srukf") -> None:
@@ -170,6 +180,7 @@ class SquareRootUKF(GaussianFilter):
         self.root = _Root(root)
         self.kind = kind
         self.fallbacks = 0
+        self.repairs = 0
         super().__init__(motion, measurement, x0, P0)  # sets S through the P setter
 
     @property
@@ -194,8 +205,21 @@ class SquareRootUKF(GaussianFilter):
             return cholupdate(S, v, np.sign(Wc[0]))
         except DowndateError:
             self.fallbacks += 1
-            return cholesky(symmetrize(S @ S.T + np.sign(Wc[0]) * np.outer(v, v)),
-                            "covariance after the Wc0 downdate")
+            return self._full_factor(S @ S.T + np.sign(Wc[0]) * np.outer(v, v),
+                                     "covariance after the Wc0 downdate")
+
+    def _full_factor(self, M: np.ndarray, what: str) -> np.ndarray:
+        """Cholesky factor of the full-covariance fallback, or its repair (see class doc)."""
+        M = symmetrize(M)
+        try:
+            return cholesky(M, what)
+        except NotPositiveDefiniteError:
+            if not self.repair or not np.all(np.isfinite(M)):
+                raise
+            self.repairs += 1
+            d, U = np.linalg.eigh(M)
+            floor = 1e-10 * max(float(d.max()), np.finfo(float).tiny)
+            return tria(U * np.sqrt(np.maximum(d, floor)))
 
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
         Xp = self.motion.f(self._points(self.x), dt, u)
@@ -210,8 +234,7 @@ class SquareRootUKF(GaussianFilter):
         dX = self.motion.residual(X, self.x)
         Pxy = (dX.T * self.rule.Wc) @ dY
         # K = Pxy (Sy Sy')^-1 by two triangular solves (SEEDS 1.5).
-        K = solve_triangular(Sy, solve_triangular(Sy, Pxy.T, lower=True), lower=True,
-                             trans="T").T
+        K = np.linalg.solve(Sy.T, np.linalg.solve(Sy, Pxy.T)).T
         nu = meas.residual(z, ybar)
         self.x = self.x + K @ nu
         U = K @ Sy
@@ -221,9 +244,9 @@ class SquareRootUKF(GaussianFilter):
                 S = cholupdate(S, U[:, j], -1.0)
         except DowndateError:
             self.fallbacks += 1
-            S = cholesky(symmetrize(self.S @ self.S.T - U @ U.T), "updated covariance")
+            S = self._full_factor(self.S @ self.S.T - U @ U.T, "updated covariance")
         self.S = S
-        w = solve_triangular(Sy, nu, lower=True)
+        w = np.linalg.solve(Sy, nu)
         return Innovation(nu=nu, S=Sy @ Sy.T, K=K, nis=np.asarray(w @ w))
 
 

@@ -30,7 +30,7 @@ def kf_predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray,
                fx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Predict: x- = F x (or the given fx = f(x)),  P- = F P F' + Q  (SEEDS 1.1; seed 001 eq. 23,
     with Q added once)."""
-    x_pred = np.einsum("...ij,...j->...i", F, x) if fx is None else fx
+    x_pred = (F @ x[..., None])[..., 0] if fx is None else fx
     return x_pred, symmetrize(F @ P @ _T(F) + Q)
 
 
@@ -43,8 +43,9 @@ def kf_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np
 
     `mask` (..., m) marks the rows present; a missing row gets a zero H row, zero innovation
     and a decoupled unit variance, so it changes nothing (this is exact, and lets a batch of
-    targets with different missing rows share one call). The gain comes from a Cholesky
-    solve; an S that is not positive definite raises NotPositiveDefiniteError.
+    targets with different missing rows share one call). S is checked by a Cholesky
+    factorisation (NotPositiveDefiniteError if it fails); for the small S here one batched
+    inverse serves the gain and the NIS.
     """
     if mask is not None:
         keep = mask.astype(float)
@@ -55,15 +56,13 @@ def kf_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np
     PHt = P @ _T(H)
     S = symmetrize(H @ PHt + R)
     try:
-        L = np.linalg.cholesky(S)
+        np.linalg.cholesky(S)  # the positive-definiteness check
     except np.linalg.LinAlgError:
         raise NotPositiveDefiniteError("innovation covariance S is not positive definite") from None
-    # K' = S^-1 (H P) via the Cholesky factor: two triangular solves.
-    Kt = np.linalg.solve(_T(L), np.linalg.solve(L, _T(PHt)))
-    K = _T(Kt)
-    x_new = x + np.einsum("...ij,...j->...i", K, nu)
+    S_inv = symmetrize(np.linalg.inv(S))
+    K = PHt @ S_inv
+    x_new = x + (K @ nu[..., None])[..., 0]
     A = np.eye(P.shape[-1]) - K @ H
-    P_new = symmetrize(A @ P @ _T(A) + K @ R @ Kt)
-    w = np.linalg.solve(L, nu[..., None])[..., 0]
-    nis = np.einsum("...i,...i->...", w, w)
+    P_new = symmetrize(A @ P @ _T(A) + K @ R @ _T(K))
+    nis = (nu[..., None, :] @ S_inv @ nu[..., :, None])[..., 0, 0]
     return x_new, P_new, Innovation(nu=nu, S=S, K=K, nis=nis)

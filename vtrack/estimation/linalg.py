@@ -18,8 +18,14 @@ class DowndateError(EstimationError):
 
 
 def wrap_angle(a: np.ndarray | float) -> np.ndarray:
-    """Wrap angles to (-pi, pi]: wrap(a) = pi - ((pi - a) mod 2 pi)  (SEEDS notation)."""
-    return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), 2.0 * np.pi)
+    """Wrap angles to (-pi, pi]: wrap(a) = pi - ((pi - a) mod 2 pi)  (SEEDS notation).
+
+    In floating point `(pi - a) mod 2 pi` rounds up to exactly 2 pi for a just above pi
+    (e.g. nextafter(pi, 4)), which would give -pi; that one value is mapped back to pi
+    (exact: -pi + 2 pi == pi in binary64), so the result is always in (-pi, pi].
+    """
+    w = np.pi - np.mod(np.pi - np.asarray(a, dtype=float), 2.0 * np.pi)
+    return w + np.where(w == -np.pi, 2.0 * np.pi, 0.0)
 
 
 def symmetrize(P: np.ndarray) -> np.ndarray:

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Create (or reuse) the project's environment in .venv/ with every optional extra.
+# Needs only python3 (>= 3.11). Re-running is cheap: it reinstalls only when pyproject.toml
+# changed since the last successful install.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  "$PY" -m venv .venv
+fi
+stamp=.venv/.vtrack-installed
+want=$(sha256sum pyproject.toml | cut -d' ' -f1)
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ] || ! .venv/bin/python -c "import vtrack, trackeval" 2>/dev/null; then
+  .venv/bin/python -m pip install --quiet --upgrade pip
+  .venv/bin/python -m pip install --quiet -e ".[all,test]"
+  # trackeval 1.3.0 hard-depends on opencv-python (clashes with the headless build) and
+  # pycocotools; its MOTChallenge path needs neither, so it is installed without them.
+  .venv/bin/python -m pip install --quiet --no-deps "trackeval==1.3.0"
+  echo "$want" > "$stamp"
+fi

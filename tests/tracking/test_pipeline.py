@@ -1,0 +1,163 @@
+"""End to end: synthetic video -> vtrack track -> vtrack eval, real clips' line counts,
+outputs, interruption and bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vtrack.cli import main
+from vtrack.evaluation.mot import box_iou, evaluate, read_mot
+
+
+def _track(video: Path, out: Path, *extra: str) -> dict:
+    assert main(["track", str(video), "--out", str(out), "--quiet", *extra]) == 0
+    return json.loads((out / "summary.json").read_text())
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_synthetic_accuracy(synth_video, tmp_path, seed):
+    src = synth_video(seed)
+    _track(src / "video.avi", tmp_path)
+    scores = evaluate(src / "gt.csv", tmp_path / "tracks.csv")
+    print(f"seed {seed}: {scores}")
+    assert scores["mota"] >= 0.85
+    assert scores["idf1"] >= 0.80
+
+
+def test_vehicle_behind_occluder_keeps_its_id(synth_video, tmp_path):
+    src = synth_video(0)
+    _track(src / "video.avi", tmp_path)
+    gt = read_mot(src / "gt.csv")
+    tr = read_mot(tmp_path / "tracks.csv")
+    checked = 0
+    for gid in np.unique(gt[:, 1]):
+        g = gt[gt[:, 1] == gid]
+        at_border = ((g[:, 2] <= 0) | (g[:, 3] <= 0) | (g[:, 2] + g[:, 4] >= 640)
+                     | (g[:, 3] + g[:, 5] >= 360))
+        g = g[~at_border]   # entering or leaving the image is not an occlusion
+        if len(g) == 0:
+            continue
+        vis = g[:, 10]
+        hidden = np.flatnonzero(vis < 0.3)
+        before = np.flatnonzero((vis > 0.9) & (np.arange(len(g)) < (hidden.min() if len(hidden) else 0)))
+        after = np.flatnonzero((vis > 0.9) & (np.arange(len(g)) > (hidden.max() if len(hidden) else 0)))
+        if len(hidden) < 3 or len(before) < 5 or len(after) < 5:
+            continue  # not occluded mid-path for several frames
+
+        def matched_id(row):
+            cand = tr[tr[:, 0] == row[0]]
+            if len(cand) == 0:
+                return None
+            iou = box_iou(row[None, 2:6], cand[:, 2:6])[0]
+            return int(cand[np.argmax(iou), 1]) if iou.max() >= 0.5 else None
+
+        id_before = matched_id(g[before[-1]])
+        id_after = matched_id(g[after[0]])
+        assert id_before is not None and id_before == id_after, f"gt vehicle {gid}"
+        checked += 1
+    assert checked >= 1, "the synthetic clip should contain a vehicle hidden by the occluder"
+
+
+def test_outputs_follow_the_interface(synth_video, tmp_path):
+    src = synth_video(0)
+    summary = _track(src / "video.avi", tmp_path, "--max-frames", "120", "--save-frames",
+                     "--count-line", "320,0,320,360")
+    rows = read_mot(tmp_path / "tracks.csv")
+    assert summary["frames"] == 120 and summary["complete"] is True
+    assert summary["tracks"] == len(np.unique(rows[:, 1]))
+    assert {"video", "width", "height", "fps_video", "fps_processed", "counts"} <= set(summary)
+    order = np.lexsort((rows[:, 1], rows[:, 0]))
+    assert np.array_equal(order, np.arange(len(rows))), "rows sorted by frame then id"
+    assert np.all(rows[:, 6] > 0) and np.all(rows[:, 6] <= 1)
+    assert np.all(rows[:, 7:10] == -1)
+    frames = sorted((tmp_path / "frames").iterdir())
+    assert len(frames) == 120 and frames[0].name == "000001.jpg"
+    crossings = (tmp_path / "crossings.csv").read_text().splitlines()
+    assert crossings[0] == "frame,time_s,id,line,direction"
+    c = summary["counts"][0]
+    assert c["line"] == [320.0, 0.0, 320.0, 360.0]
+    assert c["forward"] + c["backward"] == c["total"] == len(crossings) - 1
+    # a re-run without --save-frames leaves no stale frames behind
+    _track(src / "video.avi", tmp_path, "--max-frames", "20")
+    assert not (tmp_path / "frames").exists()
+
+
+@pytest.mark.parametrize("clip,lines,expected", [
+    ("highway", (0.6, 0.8), 27),
+    ("residential", (0.6,), 3),
+])
+def test_real_clip_line_counts_match_hand_counts(tmp_path, real_clip, clip, lines, expected):
+    import cv2
+
+    video = real_clip(clip)
+    cap = cv2.VideoCapture(str(video))
+    w, h = cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
+    cap.release()
+    args = []
+    for f in lines:
+        args += ["--count-line", f"0,{f * h},{w},{f * h}"]
+    summary = _track(video, tmp_path, *args)
+    totals = [c["total"] for c in summary["counts"]]
+    print(f"{clip}: line totals {totals} vs hand count {expected}, "
+          f"{summary['tracks']} tracks")
+    for total in totals:
+        if expected <= 3:
+            assert total == expected
+        else:
+            assert abs(total - expected) <= 0.1 * expected
+
+
+def test_interrupt_flushes_valid_files(synth_video, tmp_path):
+    src = synth_video(1)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    proc = subprocess.Popen([sys.executable, "-m", "vtrack", "track", str(src / "video.avi"),
+                             "--out", str(tmp_path), "--quiet", "--save-frames"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    frames = tmp_path / "frames"
+    deadline = time.time() + 60
+    while time.time() < deadline and (not frames.exists() or len(list(frames.iterdir())) < 30):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["complete"] is False and 0 < summary["frames"] < 250
+    rows = read_mot(tmp_path / "tracks.csv")
+    assert len(rows) == 0 or rows[:, 0].max() <= summary["frames"]
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+@pytest.mark.parametrize("make", ["missing", "text", "empty", "directory"])
+def test_bad_video_is_one_error_line_and_writes_nothing(tmp_path, capsys, make):
+    video = tmp_path / "clip.mp4"
+    if make == "text":
+        video.write_text("not a video\n")
+    elif make == "empty":
+        video.write_bytes(b"")
+    elif make == "directory":
+        video.mkdir()
+    out = tmp_path / "out"
+    assert main(["track", str(video), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "clip.mp4" in err[0]
+    assert not out.exists()
+
+
+def test_unknown_config_key_is_rejected(synth_video, tmp_path, capsys):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text("[tracker]\nmax_coast = 3\n")
+    out = tmp_path / "out"
+    assert main(["track", str(synth_video(0) / "video.avi"), "--config", str(cfg),
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "max_coast" in err and err.startswith("error: ")
+    assert not out.exists()

@@ -1,0 +1,24 @@
+"""vtrack config: print the default configuration (documented TOML) or check a file."""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "config"
+HELP = "print the documented default config (--defaults) or validate a config file"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--defaults", action="store_true", help="print every key with its default")
+    p.add_argument("--check", metavar="CFG.toml", help="validate a config file")
+
+
+def run(args: argparse.Namespace) -> int:
+    from vtrack import config
+
+    if args.check:
+        cfg = config.load(args.check)
+        print(f"{args.check}: ok (config hash {cfg.digest()})")
+        return 0
+    print(config.defaults_toml())
+    return 0

@@ -1,0 +1,59 @@
+"""vtrack track VIDEO: track vehicles in a recorded video (INTERFACE.md)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from vtrack.errors import InputError
+
+NAME = "track"
+HELP = "track vehicles in a recorded video"
+
+
+def parse_count_line(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise InputError(f"--count-line {text!r}: expected X1,Y1,X2,Y2 (numbers)") from None
+    from vtrack.config import parse_line
+
+    return parse_line(f"--count-line {text!r}", values)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("video", help="video file (any container/codec OpenCV reads)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default runs/<video stem>/)")
+    p.add_argument("--config", metavar="CFG.toml", help="TOML config (vtrack config --defaults)")
+    p.add_argument("--save-frames", action="store_true", help="write annotated frames/*.jpg")
+    p.add_argument("--save-video", action="store_true", help="write annotated.mp4")
+    p.add_argument("--rerun", metavar="FILE.rrd", help="write a rerun recording")
+    p.add_argument("--rerun-spawn", action="store_true",
+                   help="also stream to a live rerun viewer (desktop)")
+    p.add_argument("--max-frames", type=int, metavar="N", help="stop after N frames")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
+    p.add_argument("--count-line", action="append", default=[], metavar="X1,Y1,X2,Y2",
+                   help="counting line in pixels (repeatable)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from vtrack import config
+    from vtrack.tracking.pipeline import TrackOptions, track_video
+
+    if args.max_frames is not None and args.max_frames < 1:
+        raise InputError("--max-frames must be a positive integer")
+    cfg = config.load(args.config)
+    cfg.count_lines = cfg.count_lines + [parse_count_line(t) for t in args.count_line]
+    out = Path(args.out) if args.out else Path("runs") / Path(args.video).stem
+    opts = TrackOptions(save_frames=args.save_frames, save_video=args.save_video,
+                        rerun=args.rerun, rerun_spawn=args.rerun_spawn,
+                        max_frames=args.max_frames,
+                        progress=not args.quiet and sys.stdout.isatty())
+    summary = track_video(args.video, out, cfg, opts)
+    if not args.quiet:
+        counts = ", ".join(f"line {k}: {c['forward']} fwd / {c['backward']} bwd"
+                           for k, c in enumerate(summary["counts"]))
+        print(f"{summary['frames']} frames, {summary['tracks']} tracks, "
+              f"{summary['fps_processed']} fps -> {out}" + (f"; {counts}" if counts else ""))
+    return 0

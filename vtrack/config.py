@@ -1,0 +1,163 @@
+"""The one TOML config of `vtrack track` / `vtrack batch`: every parameter, with documented
+defaults (`vtrack config --defaults` prints them). Unknown sections or keys are errors.
+
+    count_lines = [[x1, y1, x2, y2], ...]     # top level
+    [detector] ...   vtrack.vision.detect.DetectorConfig
+    [tracker]  ...   vtrack.tracking.tracker.TrackerConfig
+    [output]   ...   OutputConfig
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from vtrack.errors import InputError
+from vtrack.tracking.tracker import TrackerConfig
+from vtrack.vision.detect import DetectorConfig
+
+
+@dataclass
+class OutputConfig:
+    """What the outputs look like ([output])."""
+
+    trail_length: int = field(default=40, metadata={"help": "trail points drawn per track"})
+    jpeg_quality: int = field(default=90, metadata={"help": "quality of --save-frames JPEGs"})
+    rerun_image_width: int = field(default=640, metadata={
+        "help": "video frames logged to rerun are downscaled to at most this width"})
+    rerun_jpeg_quality: int = field(default=75, metadata={
+        "help": "JPEG quality of the frames logged to rerun"})
+    rerun_foreground: bool = field(default=False, metadata={
+        "help": "also log the MOG2 foreground mask to rerun"})
+
+
+@dataclass
+class AppConfig:
+    detector: DetectorConfig = field(default_factory=DetectorConfig)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    output: OutputConfig = field(default_factory=OutputConfig)
+    count_lines: list[list[float]] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def digest(self) -> str:
+        """sha256 of the effective config (recorded in summary.json)."""
+        text = json.dumps(self.to_dict(), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+SECTIONS = {"detector": DetectorConfig, "tracker": TrackerConfig, "output": OutputConfig}
+
+
+def _coerce(where: str, value: Any, default: Any) -> Any:
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise InputError(f"{where} must be true or false")
+        return value
+    if isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise InputError(f"{where} must be an integer")
+        return value
+    if isinstance(default, float):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise InputError(f"{where} must be a number")
+        return float(value)
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise InputError(f"{where} must be a string")
+        return value
+    return value
+
+
+def parse_line(where: str, value: Any) -> list[float]:
+    """A counting line [x1, y1, x2, y2] of finite numbers, not of zero length."""
+    import math
+
+    if (not isinstance(value, (list, tuple)) or len(value) != 4
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+            or not all(math.isfinite(v) for v in value)):
+        raise InputError(f"{where}: a counting line is four numbers x1,y1,x2,y2")
+    line = [float(v) for v in value]
+    if line[:2] == line[2:]:
+        raise InputError(f"{where}: counting line has zero length")
+    return line
+
+
+def from_dict(data: dict[str, Any], source: str = "config") -> AppConfig:
+    """Build an AppConfig from parsed TOML; unknown keys and wrong types raise InputError."""
+    cfg = AppConfig()
+    for key, value in data.items():
+        if key == "count_lines":
+            if not isinstance(value, list):
+                raise InputError(f"{source}: count_lines must be a list of [x1, y1, x2, y2]")
+            cfg.count_lines = [parse_line(f"{source}: count_lines", v) for v in value]
+            continue
+        if key not in SECTIONS:
+            raise InputError(f"{source}: unknown key or section {key!r} "
+                             f"(known: count_lines, {', '.join(SECTIONS)})")
+        if not isinstance(value, dict):
+            raise InputError(f"{source}: [{key}] must be a table")
+        section = getattr(cfg, key)
+        names = {f.name for f in dataclasses.fields(section)}
+        for k, v in value.items():
+            if k not in names:
+                raise InputError(f"{source}: unknown key {k!r} in [{key}] "
+                                 f"(known: {', '.join(sorted(names))})")
+            setattr(section, k, _coerce(f"{source}: {key}.{k}", v, getattr(section, k)))
+        validate = getattr(section, "validate", None)
+        if validate is not None:
+            try:
+                validate()
+            except ValueError as exc:
+                raise InputError(f"{source}: {exc}") from None
+    return cfg
+
+
+def load(path: str | Path | None) -> AppConfig:
+    """Read a TOML config file (None: the defaults)."""
+    if path is None:
+        return AppConfig()
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{p}: config file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{p}: cannot read config ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{p}: malformed TOML ({exc})") from None
+    return from_dict(data, str(p))
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    return repr(v)
+
+
+def defaults_toml() -> str:
+    """The default config as documented TOML."""
+    lines = ["# vtrack configuration: every key, with its default.",
+             "# Counting lines [x1, y1, x2, y2] in pixels (also --count-line).",
+             "count_lines = []", ""]
+    cfg = AppConfig()
+    for name, cls in SECTIONS.items():
+        lines.append(f"[{name}]")
+        doc = (cls.__doc__ or "").strip().splitlines()
+        if doc:
+            lines.insert(len(lines) - 1, f"# {doc[0]}")
+        for f in dataclasses.fields(cls):
+            help_ = f.metadata.get("help", "")
+            if help_:
+                lines.append(f"# {help_}")
+            lines.append(f"{f.name} = {_toml_value(getattr(getattr(cfg, name), f.name))}")
+        lines.append("")
+    return "\n".join(lines)

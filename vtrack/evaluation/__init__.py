@@ -1,0 +1,1 @@
+"""Evaluation: MOT metrics on MOTChallenge files."""

@@ -1,0 +1,240 @@
+"""MOT metrics (MOTA, IDF1, HOTA) on MOTChallenge CSV files, computed by trackeval 1.3.0.
+
+Files have no header, one row per box: `frame,id,bb_left,bb_top,bb_width,bb_height,conf,x,y,z`
+and optionally an 11th column, the visible fraction. Ground-truth rows whose visible fraction
+is under 0.3 (or whose conf is 0, MOTChallenge's "ignore" mark) are ignore regions: a tracker
+box matched to one is neither a hit nor a false positive.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import os
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from vtrack.errors import InputError
+
+MIN_VISIBILITY = 0.3
+MATCH_IOU = 0.5
+INSTALL_HINT = "pip install --no-deps trackeval==1.3.0 tabulate"
+_SEQ = "seq"
+_TRACKER = "vtrack"
+
+
+# ----------------------------------------------------------------------------- reading
+
+def read_mot(path: str | os.PathLike, min_cols: int = 10, max_cols: int = 11) -> np.ndarray:
+    """Read a MOTChallenge CSV into a float array of shape (rows, cols).
+
+    Every row must have the same number of columns, between `min_cols` and `max_cols`;
+    frame is an integer >= 1, id an integer >= 1, width and height positive, no value
+    non-finite, and no (frame, id) pair twice. A file without rows gives a (0, min_cols)
+    array. Anything else raises InputError naming the file and the line.
+    """
+    path = Path(path)
+    lines = _read_lines(path)
+    rows: list[list[float]] = []
+    line_nos: list[int] = []
+    for line_no, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        rows.append(_parse_row(path, line_no, line, min_cols, max_cols))
+        if len(rows[-1]) != len(rows[0]):
+            raise InputError(f"{path}: line {line_no}: {len(rows[-1])} columns, "
+                             f"but line {line_nos[0]} has {len(rows[0])}")
+        line_nos.append(line_no)
+    if not rows:
+        return np.zeros((0, min_cols))
+    data = np.array(rows, dtype=float)
+    _check_values(path, data, np.array(line_nos))
+    return data
+
+
+def _read_lines(path: Path) -> list[str]:
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    if not path.is_file():
+        raise InputError(f"{path}: not a file")
+    try:
+        return path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a UTF-8 text file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+
+
+def _parse_row(path: Path, line_no: int, line: str, min_cols: int, max_cols: int) -> list[float]:
+    cells = [c.strip() for c in line.split(",")]
+    if not min_cols <= len(cells) <= max_cols:
+        want = f"{min_cols}" if min_cols == max_cols else f"{min_cols} to {max_cols}"
+        raise InputError(f"{path}: line {line_no}: {len(cells)} columns, expected {want}")
+    values = []
+    for col, cell in enumerate(cells, start=1):
+        try:
+            value = float(cell)
+        except ValueError:
+            raise InputError(f"{path}: line {line_no}: column {col} is not a number: "
+                             f"{cell[:20]!r}") from None
+        if not math.isfinite(value):
+            raise InputError(f"{path}: line {line_no}: column {col} is not finite: {cell!r}")
+        values.append(value)
+    return values
+
+
+def _check_values(path: Path, data: np.ndarray, line_nos: np.ndarray) -> None:
+    checks = [
+        ((data[:, 0] < 1) | (data[:, 0] != np.round(data[:, 0])), "frame must be an integer >= 1"),
+        ((data[:, 1] < 1) | (data[:, 1] != np.round(data[:, 1])), "id must be an integer >= 1"),
+        ((data[:, 4] <= 0) | (data[:, 5] <= 0), "box width and height must be positive"),
+    ]
+    for bad, what in checks:
+        if bad.any():
+            raise InputError(f"{path}: line {line_nos[np.argmax(bad)]}: {what}")
+    keys = data[:, 0].astype(np.int64) * (1 << 32) + data[:, 1].astype(np.int64)
+    _, first, counts = np.unique(keys, return_index=True, return_counts=True)
+    if (counts > 1).any():
+        dup = keys == keys[first[np.argmax(counts > 1)]]
+        a, b = line_nos[dup][:2]
+        raise InputError(f"{path}: line {b}: frame {int(data[dup][0, 0])} repeats id "
+                         f"{int(data[dup][0, 1])} of line {a}")
+
+
+# ----------------------------------------------------------------------------- ignore rule
+
+def ignore_mask(gt: np.ndarray) -> np.ndarray:
+    """Boolean mask of ground-truth rows that are ignore regions (visible < 0.3 or conf 0)."""
+    mask = gt[:, 6] == 0
+    if gt.shape[1] >= 11:
+        mask |= gt[:, 10] < MIN_VISIBILITY
+    return mask
+
+
+def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """IoU matrix between boxes a (n, 4) and b (m, 4), both as (left, top, width, height)."""
+    a_lo, a_hi = a[:, None, :2], a[:, None, :2] + a[:, None, 2:4]
+    b_lo, b_hi = b[None, :, :2], b[None, :, :2] + b[None, :, 2:4]
+    inter = np.clip(np.minimum(a_hi, b_hi) - np.maximum(a_lo, b_lo), 0, None).prod(axis=2)
+    union = a[:, None, 2:4].prod(axis=2) + b[None, :, 2:4].prod(axis=2) - inter
+    return inter / union
+
+
+def drop_ignored(gt: np.ndarray, tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Remove ignore GT rows, and the tracker rows matched to them (MOTChallenge preprocessing).
+
+    Per frame, tracker boxes are matched to ALL ground-truth boxes by the Hungarian method on
+    IoU >= 0.5; a tracker box whose match is an ignore box is dropped.
+    """
+    ignore = ignore_mask(gt)
+    keep = np.ones(len(tracks), dtype=bool)
+    for frame in np.unique(gt[ignore, 0]):
+        g = gt[:, 0] == frame
+        t = np.flatnonzero(tracks[:, 0] == frame)
+        if t.size == 0:
+            continue
+        iou = box_iou(gt[g, 2:6], tracks[t, 2:6])
+        iou[iou < MATCH_IOU - np.finfo(float).eps] = 0.0
+        rows, cols = linear_sum_assignment(-iou)
+        matched = iou[rows, cols] > 0
+        keep[t[cols[matched & ignore[g][rows]]]] = False
+    return gt[~ignore], tracks[keep]
+
+
+# ----------------------------------------------------------------------------- scoring
+
+def evaluate(gt_path: str | os.PathLike, tracks_path: str | os.PathLike) -> dict[str, Any]:
+    """Score a tracks file against a ground-truth file; see `evaluate_arrays` for the keys."""
+    gt = read_mot(gt_path)
+    if len(gt) == 0:
+        raise InputError(f"{gt_path}: no ground-truth rows")
+    return evaluate_arrays(gt, read_mot(tracks_path))
+
+
+def evaluate_arrays(gt: np.ndarray, tracks: np.ndarray) -> dict[str, Any]:
+    """Score tracker rows against ground-truth rows (arrays as returned by `read_mot`).
+
+    Returns mota, idf1, hota (fractions; hota is the mean over IoU thresholds 0.05..0.95),
+    id_switches, false_positives, misses, and detail keys (true_positives, precision, recall,
+    deta, assa, motp, gt_ids, pred_ids, gt_boxes, pred_boxes, ignored_gt_boxes,
+    ignored_pred_boxes, frames).
+    """
+    frames = int(max(gt[:, 0].max(initial=0), tracks[:, 0].max(initial=0)))
+    gt_kept, tracks_kept = drop_ignored(gt, tracks)
+    raw = _run_trackeval(gt_kept, tracks_kept, max(frames, 1))
+    hota, clear, ident = raw["HOTA"], raw["CLEAR"], raw["Identity"]
+    return {
+        "mota": float(clear["MOTA"]),
+        "idf1": float(ident["IDF1"]),
+        "hota": float(np.mean(hota["HOTA"])),
+        "id_switches": int(clear["IDSW"]),
+        "false_positives": int(clear["CLR_FP"]),
+        "misses": int(clear["CLR_FN"]),
+        "true_positives": int(clear["CLR_TP"]),
+        "precision": float(clear["CLR_Pr"]),
+        "recall": float(clear["CLR_Re"]),
+        "deta": float(np.mean(hota["DetA"])),
+        "assa": float(np.mean(hota["AssA"])),
+        "motp": float(clear["MOTP"]),
+        "gt_ids": len(np.unique(gt_kept[:, 1])),
+        "pred_ids": len(np.unique(tracks_kept[:, 1])),
+        "gt_boxes": len(gt_kept),
+        "pred_boxes": len(tracks_kept),
+        "ignored_gt_boxes": len(gt) - len(gt_kept),
+        "ignored_pred_boxes": len(tracks) - len(tracks_kept),
+        "frames": frames,
+    }
+
+
+def _run_trackeval(gt: np.ndarray, tracks: np.ndarray, frames: int) -> dict[str, Any]:
+    """Evaluate one sequence with trackeval's MotChallenge2DBox, silencing all its output."""
+    sink = io.StringIO()
+    with (tempfile.TemporaryDirectory(prefix="vtrack-eval-") as root,
+          contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink),
+          warnings.catch_warnings()):
+        warnings.simplefilter("ignore")
+        trackeval = _import_trackeval()
+        gt_root, trk_root = _write_layout(Path(root), gt, tracks)
+        dataset = trackeval.datasets.MotChallenge2DBox({
+            "GT_FOLDER": str(gt_root), "TRACKERS_FOLDER": str(trk_root),
+            "TRACKERS_TO_EVAL": [_TRACKER], "SKIP_SPLIT_FOL": True, "DO_PREPROC": False,
+            "PRINT_CONFIG": False, "SEQ_INFO": {_SEQ: frames}, "OUTPUT_FOLDER": None})
+        evaluator = trackeval.Evaluator({
+            "USE_PARALLEL": False, "BREAK_ON_ERROR": True, "LOG_ON_ERROR": None,
+            "PRINT_RESULTS": False, "PRINT_CONFIG": False, "TIME_PROGRESS": False,
+            "OUTPUT_SUMMARY": False, "OUTPUT_DETAILED": False, "PLOT_CURVES": False})
+        metrics = [trackeval.metrics.HOTA(), trackeval.metrics.CLEAR(),
+                   trackeval.metrics.Identity()]
+        res, _ = evaluator.evaluate([dataset], metrics)
+    return res["MotChallenge2DBox"][_TRACKER][_SEQ]["pedestrian"]
+
+
+def _import_trackeval() -> Any:
+    try:
+        import trackeval
+    except ImportError:
+        raise InputError(f"trackeval is not installed: run `{INSTALL_HINT}`") from None
+    return trackeval
+
+
+def _write_layout(root: Path, gt: np.ndarray, tracks: np.ndarray) -> tuple[Path, Path]:
+    """Write gt/<seq>/gt/gt.txt and trackers/<name>/data/<seq>.txt as trackeval expects."""
+    gt_file = root / "gt" / _SEQ / "gt" / "gt.txt"
+    trk_file = root / "trackers" / _TRACKER / "data" / f"{_SEQ}.txt"
+    gt_file.parent.mkdir(parents=True)
+    trk_file.parent.mkdir(parents=True)
+    ones = np.ones((len(gt), 1))
+    # gt: frame,id,box,conf=1,class=1,visibility=1; tracker: frame,id,box,conf,-1,-1,-1
+    _savetxt(gt_file, np.hstack([gt[:, :6], ones, ones, ones]))
+    _savetxt(trk_file, np.hstack([tracks[:, :7], -np.ones((len(tracks), 3))]))
+    return root / "gt", root / "trackers"
+
+
+def _savetxt(path: Path, rows: np.ndarray) -> None:
+    np.savetxt(path, rows, fmt="%.10g", delimiter=",")

@@ -1,0 +1,499 @@
+"""Seed 000 bearings-only tracking (BOT) scenario shared by the `bearings-*` and `ankf`
+experiments: constants, truth generators, measurements, a Monte Carlo driver and metrics.
+
+Every filter comes from the shared core (`make_filter`). The EKF may run all Monte Carlo runs
+at once: that path is the core EKF step written with batch axes (kalman.kf_predict,
+models.residual/h/H, kalman.kf_update), and a test checks it against the per-run core EKF.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vtrack.estimation.bounds import chi2_band, nees, pcrlb_linear
+from vtrack.estimation.filters import make_filter
+from vtrack.estimation.kalman import kf_predict, kf_update
+from vtrack.estimation.linalg import EstimationError, wrap_angle
+from vtrack.estimation.models import Bearings, WienerVelocity
+from vtrack.experiments import ExampleRun
+
+# ---------------------------------------------------------------- parameters (SEEDS 2.3)
+
+DT = 0.01                                   # [P][R]
+STEPS = 500                                 # [R: ekfs_bot_demo.m]
+Q_TRUE = 0.1                                # sigma_v^2, spectral density [P][R]
+SIGMA_W = 0.05                              # bearing noise std, rad [P][R]
+M0 = np.zeros(4)                            # filter prior mean [P][R]
+P0 = np.diag([0.1, 0.1, 10.0, 10.0])        # filter prior covariance [P][R]
+X0_TRUE = np.array([0.0, 0.0, 1.0, 0.0])    # true initial state [R]
+SENSORS_DEDUCED = np.array([[1.0, -2.0], [1.0, 2.0]])          # [A] deduced, SEEDS 2.3
+SENSOR_3 = np.array([1.0 - 2.0 * np.sqrt(3.0), 0.0])            # [P] 1 - 2/tan(30 deg)
+SENSORS_THREE = np.vstack([SENSORS_DEDUCED, SENSOR_3])
+SENSORS_TOOLBOX = np.array([[-1.0, -2.0], [1.0, 1.0]])          # [R] ekfukf bot demo
+TURN_SEGMENTS = ((49, 100), (199, 250), (349, 400))             # 0-based, 51 steps each
+TURN_RATE = (np.pi / 2) / 51 / DT                               # quarter turn per segment
+TURN_RATE_NOISE = 0.01                                          # per-step N(0,1) scale
+
+
+class CachedWienerVelocity(WienerVelocity):
+    """The core WienerVelocity model with Phi(dt) and Q(dt) memoised (same numbers; the Monte
+    Carlo loops ask for them ~10^5 times with one dt)."""
+
+    def __init__(self, q: float) -> None:
+        super().__init__(q)
+        self._cache: dict[tuple[str, float], np.ndarray] = {}
+
+    def transition(self, dt: float) -> np.ndarray:
+        key = ("F", float(dt))
+        if key not in self._cache:
+            self._cache[key] = super().transition(dt)
+        return self._cache[key]
+
+    def Q(self, dt: float) -> np.ndarray:
+        key = ("Q", float(dt))
+        if key not in self._cache:
+            self._cache[key] = super().Q(dt)
+        return self._cache[key]
+
+
+# ------------------------------------------------------------------------- randomness
+
+
+def run_seeds(seed: int, runs: int) -> list[int]:
+    """One integer seed per Monte Carlo run, derived from the experiment seed (SEEDS 1.7).
+
+    Run r uses three independent streams: default_rng([s_r, 0]) for the truth (turn-rate or
+    process noise), [s_r, 1] for the measurement noise and [s_r, 2] for anything the filter
+    draws (a random initial estimate). Run r therefore has the same truth in every experiment
+    and every geometry, which makes comparisons paired.
+    """
+    return [int(s) for s in np.random.SeedSequence(seed).generate_state(runs, dtype=np.uint32)]
+
+
+def _rng(s: int, stream: int) -> np.random.Generator:
+    return np.random.default_rng([s, stream])
+
+
+# ------------------------------------------------------------------------------ truth
+
+
+def turn_transition(a: np.ndarray, dt: float) -> np.ndarray:
+    """expm(Fc(a) dt) for Fc = [[0,0,1,0],[0,0,0,1],[0,0,0,a],[0,0,-a,0]] in closed form
+    (..., 4, 4): the velocity turns by -a dt, the position integrates it. Equal to
+    scipy.linalg.expm to rounding (a unit test checks it); batched expm is slow here."""
+    a = np.asarray(a, dtype=float)
+    th = a * dt
+    c, s = np.cos(th), np.sin(th)
+    small = np.abs(a) < 1e-12
+    safe = np.where(small, 1.0, a)
+    s_a = np.where(small, dt, s / safe)                       # int_0^dt cos(a t) dt
+    c_a = np.where(small, 0.5 * a * dt * dt, (1.0 - c) / safe)  # int_0^dt sin(a t) dt
+    Phi = np.zeros(a.shape + (4, 4))
+    Phi[..., 0, 0] = Phi[..., 1, 1] = 1.0
+    Phi[..., 0, 2], Phi[..., 0, 3] = s_a, c_a
+    Phi[..., 1, 2], Phi[..., 1, 3] = -c_a, s_a
+    Phi[..., 2, 2], Phi[..., 2, 3] = c, s
+    Phi[..., 3, 2], Phi[..., 3, 3] = -s, c
+    return Phi
+
+
+def turn_rates(seeds: list[int]) -> np.ndarray:
+    """Per-step turn rates of the toolbox path (runs, 500): (pi/2)/51/dt + 0.01 N(0,1) on the
+    three 51-step segments, 0 elsewhere; drawn from each run's truth stream."""
+    a = np.zeros((len(seeds), STEPS))
+    for r, s in enumerate(seeds):
+        rng = _rng(s, 0)
+        for lo, hi in TURN_SEGMENTS:
+            a[r, lo:hi] = TURN_RATE + TURN_RATE_NOISE * rng.standard_normal(hi - lo)
+    return a
+
+
+def turning_truth(seeds: list[int]) -> np.ndarray:
+    """The toolbox's coordinated-turn path (SEEDS 2.3), states after each of the 500 steps.
+
+    x_{k+1} = expm(Fc(a_k) dt) x_k from [0, 0, 1, 0] with the turn rates of turn_rates();
+    measurements are taken after each propagation. Returns (runs, 500, 4).
+    """
+    Phi = turn_transition(turn_rates(seeds), DT)
+    x = np.broadcast_to(X0_TRUE, (len(seeds), 4)).copy()
+    out = np.empty((len(seeds), STEPS, 4))
+    for k in range(STEPS):
+        x = np.einsum("rij,rj->ri", Phi[:, k], x)
+        out[:, k] = x
+    return out
+
+
+def wiener_truth(seeds: list[int], q: float = Q_TRUE) -> np.ndarray:
+    """Model-matched truth: x_k = F x_{k-1} + v, v ~ N(0, Q(q)) from X0_TRUE (SEEDS 2.6).
+    Returns (runs, 500, 4)."""
+    model = WienerVelocity(q)
+    F, L = model.transition(DT), np.linalg.cholesky(model.Q(DT))
+    out = np.empty((len(seeds), STEPS, 4))
+    for r, s in enumerate(seeds):
+        w = _rng(s, 0).standard_normal((STEPS, 4)) @ L.T
+        x = X0_TRUE.copy()
+        for k in range(STEPS):
+            x = F @ x + w[k]
+            out[r, k] = x
+    return out
+
+
+def randomised_priors(seeds: list[int]) -> np.ndarray:
+    """Initial estimates m0_r = x0 + N(0, P0) from each run's filter stream: the truth is then a
+    sample of the filter's prior N(m0, P0), as the strict PCRLB needs (SEEDS 7.2)."""
+    L = np.linalg.cholesky(P0)
+    return np.array([X0_TRUE + L @ _rng(s, 2).standard_normal(4) for s in seeds])
+
+
+def measure(truth: np.ndarray, sensors: np.ndarray, sigma: float | np.ndarray,
+            seeds: list[int]) -> np.ndarray:
+    """Bearings z = wrap(atan2(y - sy, x - sx) + sigma_k N(0,1)) of every state (runs, K, m).
+
+    `sigma` is a number or one value per step (K,). Sensor j's noise is the j-th block of K
+    normals of the run's measurement stream, so adding a sensor leaves the others' noise
+    unchanged (paired comparisons between geometries)."""
+    meas = Bearings(sensors, 1.0)
+    runs, K, _ = truth.shape
+    noise = np.stack([_rng(s, 1).standard_normal((meas.m, K)).T for s in seeds])
+    sig = np.broadcast_to(np.asarray(sigma, dtype=float), (K,))[None, :, None]
+    return wrap_angle(meas.h(truth) + sig * noise)
+
+
+# --------------------------------------------------------------------------- filtering
+
+
+@dataclass
+class FilterRun:
+    """Posterior means (runs, K, n) and covariances (runs, K, n, n) of one filter over all runs;
+    `failed[r]` is True when the core raised (that run's arrays are NaN); `series` holds
+    per-step diagnostics of the adaptive filters (runs, K, ...)."""
+
+    kind: str
+    x: np.ndarray
+    P: np.ndarray
+    failed: np.ndarray
+    series: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def batched_ekf(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
+                P0: np.ndarray) -> FilterRun:
+    """The core EKF over all runs at once: kf_predict, then nu = residual(z, h(x-)) and
+    kf_update with H(x-), every array carrying a leading run axis (seed 000 eqs. 7-9)."""
+    runs, K, _ = Z.shape
+    n = len(x0s[0])
+    x = np.array(x0s, dtype=float)
+    P = np.broadcast_to(P0, (runs, n, n)).copy()
+    F, Q = motion.F(x[0], DT), motion.Q(DT)
+    X, PP = np.empty((runs, K, n)), np.empty((runs, K, n, n))
+    for k in range(K):
+        x, P = kf_predict(x, P, F, Q, fx=motion.f(x, DT))
+        nu = meas.residual(Z[:, k], meas.h(x))
+        H = np.stack([meas.H(xi) for xi in x])
+        x, P, _ = kf_update(x, P, nu, H, meas.R)
+        X[:, k], PP[:, k] = x, P
+    return FilterRun("ekf", X, PP, np.zeros(runs, dtype=bool))
+
+
+_DIAGNOSTICS = {"ankf1": ("R_used",), "ankf2": ("R_used", "lambda_P")}
+
+
+def run_filter(kind: str, motion: WienerVelocity, meas: Bearings, Z: np.ndarray,
+               x0s: np.ndarray, P0: np.ndarray, batch: bool = True, **options: object
+               ) -> FilterRun:
+    """Run filter `kind` (core make_filter) over every run; the EKF without options runs
+    batched unless batch=False (identical numbers, see batched_ekf)."""
+    if kind == "ekf" and batch and not options:
+        try:
+            out = batched_ekf(motion, meas, Z, x0s, P0)
+            if np.all(np.isfinite(out.x)):
+                return out
+        except (EstimationError, np.linalg.LinAlgError):
+            pass   # one bad run stops the batch: redo run by run so only that run fails
+    runs, K, _ = Z.shape
+    n = len(x0s[0])
+    X = np.full((runs, K, n), np.nan)
+    PP = np.full((runs, K, n, n), np.nan)
+    failed = np.zeros(runs, dtype=bool)
+    diag_names = _DIAGNOSTICS.get(kind, ())
+    series: dict[str, list] = {name: [] for name in diag_names}
+    for r in range(runs):
+        run_series = {name: [] for name in diag_names}
+        try:
+            f = make_filter(kind, motion, meas, x0s[r], P0, **options)
+            for k in range(K):
+                f.step(DT, Z[r, k])
+                X[r, k], PP[r, k] = f.x, f.P
+                for name in diag_names:
+                    value = getattr(f, name)
+                    run_series[name].append(np.diagonal(value) if name == "R_used" else value)
+        except (EstimationError, np.linalg.LinAlgError, FloatingPointError):
+            failed[r] = True
+            X[r], PP[r] = np.nan, np.nan
+        for name in diag_names:
+            vals = run_series[name]
+            shape = np.shape(vals[0]) if vals else ()
+            arr = np.full((K,) + shape, np.nan)
+            if vals:
+                arr[: len(vals)] = vals
+            series[name].append(arr)
+    return FilterRun(kind, X, PP, failed, {k: np.array(v) for k, v in series.items()})
+
+
+# ----------------------------------------------------------------------------- bounds
+
+
+def pcrlb_variance(truth: np.ndarray, sensors: np.ndarray, sigma: float | np.ndarray,
+                   q: float = Q_TRUE) -> np.ndarray:
+    """Position part of the PCRLB, [J_k^-1]_xx + [J_k^-1]_yy per step (K,) (SEEDS 7.2).
+
+    One information recursion for the Wiener-velocity model with spectral density q and the
+    prior P0; E[H' R^-1 H] at each step is averaged over the true states of all runs (H at the
+    true state; sigma may vary per step). For the toolbox turning truth, which is not a sample
+    of this model, the result is a model-based reference floor, not a strict bound."""
+    meas = Bearings(sensors, 1.0)
+    runs, K, _ = truth.shape
+    sig = np.broadcast_to(np.asarray(sigma, dtype=float), (K,))
+    info = np.zeros((K, 4, 4))
+    for k in range(K):
+        acc = np.zeros((4, 4))
+        for r in range(runs):
+            H = meas.H(truth[r, k])
+            acc += H.T @ H
+        info[k] = acc / runs / sig[k] ** 2
+    model = WienerVelocity(q)
+    bound = pcrlb_linear(model.transition(DT), model.Q(DT), P0, info)
+    return bound[:, 0, 0] + bound[:, 1, 1]
+
+
+# ---------------------------------------------------------------------------- metrics
+
+
+def squared_position_error(run: FilterRun, truth: np.ndarray) -> np.ndarray:
+    """Delta x^2 + Delta y^2 per run and step (runs, K); NaN for failed runs."""
+    d = run.x[..., :2] - truth[..., :2]
+    return np.sum(d * d, axis=-1)
+
+
+def per_run_rmse(run: FilterRun, truth: np.ndarray) -> np.ndarray:
+    """sqrt(mean_k (Delta x_k^2 + Delta y_k^2)) of each run (SEEDS 1.7), NaN if failed."""
+    return np.sqrt(np.mean(squared_position_error(run, truth), axis=1))
+
+
+def nees_series(run: FilterRun, truth: np.ndarray) -> np.ndarray:
+    """NEES e' P^-1 e of the full state per run and step (runs, K)."""
+    out = np.full(truth.shape[:2], np.nan)
+    for r in np.flatnonzero(~run.failed):
+        try:
+            out[r] = nees(truth[r] - run.x[r], run.P[r])
+        except np.linalg.LinAlgError:   # a singular posterior covariance: no NEES for the run
+            pass
+    return out
+
+
+def summarize(run: FilterRun, truth: np.ndarray, bound_var: np.ndarray | None,
+              paper_rmse: float | None = None) -> dict[str, float | int | None]:
+    """The JSON entry of one filter (INTERFACE.md `vtrack experiment`; SEEDS 1.7, 7.2, 7.3).
+
+    rmse: root of the mean over runs and steps of the squared position error (finite runs);
+    rmse_mean_of_runs: mean of the per-run RMSEs (the toolbox's table value), with its standard
+    error rmse_mean_of_runs_se; median of the per-run RMSEs; diverged: runs that failed or whose
+    RMSE exceeds 10x the median; pcrlb_rmse: sqrt(mean_k bound_k) and rmse_over_pcrlb; anees:
+    NEES averaged over runs and steps; nees_steps_in_band: fraction of steps whose run-averaged
+    NEES lies in the two-sided 95% chi2 band."""
+    se = squared_position_error(run, truth)
+    ok = ~run.failed & np.all(np.isfinite(se), axis=1)
+    rr = np.sqrt(np.mean(se[ok], axis=1))
+    median = float(np.median(rr)) if ok.any() else float("nan")
+    out: dict[str, float | int | None] = {
+        "rmse": float(np.sqrt(np.mean(se[ok]))) if ok.any() else float("nan"),
+        "rmse_mean_of_runs": float(np.mean(rr)) if ok.any() else float("nan"),
+        "rmse_mean_of_runs_se": float(np.std(rr, ddof=1) / np.sqrt(len(rr)))
+        if len(rr) > 1 else float("nan"),
+        "median": median,
+        "diverged": int(np.sum(~ok) + np.sum(rr > 10.0 * median)),
+        "failed": int(np.sum(~ok)),
+    }
+    if bound_var is not None:
+        out["pcrlb_rmse"] = float(np.sqrt(np.mean(bound_var)))
+        out["rmse_over_pcrlb"] = out["rmse"] / out["pcrlb_rmse"]
+    ne = nees_series(run, truth)[ok]
+    ne = ne[np.all(np.isfinite(ne), axis=1)]
+    if len(ne):
+        out["anees"] = float(np.mean(ne))
+        lo, hi = chi2_band(truth.shape[-1], len(ne))
+        per_step = np.mean(ne, axis=0)
+        out["nees_steps_in_band"] = float(np.mean((per_step >= lo) & (per_step <= hi)))
+    if paper_rmse is not None:
+        out["paper_rmse"] = paper_rmse
+    return out
+
+
+def paired_difference(a: np.ndarray, b: np.ndarray) -> dict[str, float | int]:
+    """Mean of the per-run differences a_r - b_r (e.g. per-run RMSEs of two filters on the same
+    runs) with its standard error, over the runs where both are finite."""
+    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+    d = d[np.isfinite(d)]
+    se = float(np.std(d, ddof=1) / np.sqrt(len(d))) if len(d) > 1 else float("nan")
+    return {"mean": float(np.mean(d)) if len(d) else float("nan"), "se": se, "runs": int(len(d))}
+
+
+def per_step_rmse(run: FilterRun, truth: np.ndarray) -> np.ndarray:
+    """sqrt(mean over (finite) runs of the squared position error) per step (K,)."""
+    se = squared_position_error(run, truth)
+    se = se[np.all(np.isfinite(se), axis=1)]
+    return np.sqrt(np.mean(se, axis=0))
+
+
+def json_clean(obj: object) -> object:
+    """Make a structure strict-JSON safe: numpy scalars to Python, non-finite floats to None."""
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.ndarray):
+        return json_clean(obj.tolist())
+    if isinstance(obj, dict):
+        return {str(k): json_clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_clean(v) for v in obj]
+    return obj
+
+
+# ------------------------------------------------------------------------ one scenario
+
+
+@dataclass
+class Scenario:
+    """One seed-000 set-up: geometry, truth generator and the filter's (maybe wrong) model.
+
+    truth "turn" is the toolbox's turning path from the fixed prior mean M0; "wiener" is the
+    model-matched truth (Wiener velocity with q_true) with a randomised prior mean per run.
+    sigma_true may vary per step (K,)."""
+
+    sensors: np.ndarray
+    truth: str = "turn"
+    q_true: float = Q_TRUE
+    q_filter: float = Q_TRUE
+    sigma_true: float | np.ndarray = SIGMA_W
+    sigma_filter: float = SIGMA_W
+
+    def parameters(self) -> dict[str, object]:
+        """The scenario's parameters for the JSON."""
+        sig = np.asarray(self.sigma_true, dtype=float)
+        if sig.ndim:
+            change = int(np.flatnonzero(np.diff(sig))[0] + 1) if np.any(np.diff(sig)) else None
+            sigma_true: object = {"before": float(sig[0]), "after": float(sig[-1]),
+                                  "change_at_step": change}
+        else:
+            sigma_true = float(sig)
+        return {
+            "sensors": self.sensors.tolist(),
+            "truth": {"turn": "toolbox turning path (SEEDS 2.3): 500 steps, dt 0.01, expm "
+                              "propagation, turn-rate noise 0.01 N(0,1), x0 = [0, 0, 1, 0]; "
+                              "filter prior mean m0 = [0, 0, 0, 0]",
+                      "wiener": "model-matched: Wiener velocity with the true sigma_v^2 from "
+                                "x0 = [0, 0, 1, 0]; filter prior mean m0 ~ N(x0, P0) per run"
+                      }[self.truth],
+            "dt": DT, "steps": STEPS,
+            "sigma_v2_true": self.q_true if self.truth == "wiener" else None,
+            "sigma_v2_filter": self.q_filter,
+            "sigma_w_true": sigma_true,
+            "sigma_w_filter": self.sigma_filter,
+            "P0_diag": np.diag(P0).tolist(),
+        }
+
+
+@dataclass
+class CaseRun:
+    """Everything one scenario produced over the Monte Carlo runs."""
+
+    scenario: Scenario
+    seeds: list[int]
+    truth: np.ndarray
+    Z: np.ndarray
+    x0s: np.ndarray
+    bound_var: np.ndarray
+    runs: dict[str, FilterRun]
+    options: dict[str, dict[str, object]]
+
+
+def simulate(scenario: Scenario, seeds: list[int],
+             filters: dict[str, dict[str, object]]) -> CaseRun:
+    """Truth, measurements, the PCRLB and every filter of `filters` ({kind: options}) on the
+    same runs (paired)."""
+    if scenario.truth == "turn":
+        truth = turning_truth(seeds)
+        x0s = np.broadcast_to(M0, (len(seeds), 4)).copy()
+    elif scenario.truth == "wiener":
+        truth = wiener_truth(seeds, scenario.q_true)
+        x0s = randomised_priors(seeds)
+    else:
+        raise ValueError(f"unknown truth {scenario.truth!r}")
+    Z = measure(truth, scenario.sensors, scenario.sigma_true, seeds)
+    q_bound = scenario.q_true
+    bound_var = pcrlb_variance(truth, scenario.sensors, scenario.sigma_true, q_bound)
+    motion = CachedWienerVelocity(scenario.q_filter)
+    meas = Bearings(scenario.sensors, scenario.sigma_filter)
+    runs = {kind: run_filter(kind, motion, meas, Z, x0s, P0, **opts)
+            for kind, opts in filters.items()}
+    return CaseRun(scenario, seeds, truth, Z, x0s, bound_var, runs, dict(filters))
+
+
+def case_results(case: CaseRun, paper: dict[str, float] | None = None
+                 ) -> dict[str, dict[str, object]]:
+    """`results` of one case: per filter the summarize() entry, its options and adaptation
+    diagnostics (mean adapted R per half of the run, mean fading factor)."""
+    paper = paper or {}
+    out: dict[str, dict[str, object]] = {}
+    half = STEPS // 2
+    for kind, run in case.runs.items():
+        entry = summarize(run, case.truth, case.bound_var, paper.get(kind))
+        if case.options.get(kind):
+            entry["options"] = dict(case.options[kind])
+        ok = ~run.failed
+        if "R_used" in run.series and ok.any():
+            r_used = run.series["R_used"][ok]
+            entry["r_used_mean_first_half"] = float(np.mean(r_used[:, :half]))
+            entry["r_used_mean_second_half"] = float(np.mean(r_used[:, half:]))
+        if "lambda_P" in run.series and ok.any():
+            entry["lambda_p_mean"] = float(np.mean(run.series["lambda_P"][ok]))
+        out[kind] = entry
+    return out
+
+
+def comparisons(case: CaseRun, reference: str = "ekf") -> dict[str, dict[str, float | int]]:
+    """Paired per-run RMSE differences `kind - reference` (mean, standard error, runs)."""
+    if reference not in case.runs:
+        return {}
+    ref = per_run_rmse(case.runs[reference], case.truth)
+    return {f"{kind}-{reference}": paired_difference(per_run_rmse(run, case.truth), ref)
+            for kind, run in case.runs.items() if kind != reference}
+
+
+def example_run(case: CaseRun, r: int = 0) -> ExampleRun:
+    """Run r's series for plots, plus Monte Carlo curves in extra_series: `rmse/<kind>` (per-step
+    RMSE over runs), `pcrlb` (per-step position bound), `nees/<kind>` (run-averaged NEES), and
+    for adaptive filters `R_used/<kind>` (diag of the R used, run r) and `lambda_P/<kind>`."""
+    extra: dict[str, np.ndarray] = {"pcrlb": np.sqrt(case.bound_var)}
+    nees_r: dict[str, np.ndarray] = {}
+    for kind, run in case.runs.items():
+        extra[f"rmse/{kind}"] = per_step_rmse(run, case.truth)
+        ne = nees_series(run, case.truth)
+        nees_r[kind] = ne[r]
+        ne = ne[np.all(np.isfinite(ne), axis=1)]
+        if len(ne):
+            extra[f"nees/{kind}"] = np.mean(ne, axis=0)
+        for name, series in run.series.items():
+            extra[f"{name}/{kind}"] = series[r]
+    return ExampleRun(
+        times=DT * np.arange(1, STEPS + 1),
+        truth=case.truth[r],
+        estimates={k: v.x[r] for k, v in case.runs.items()},
+        covariances={k: v.P[r] for k, v in case.runs.items()},
+        nees=nees_r,
+        sensors=np.asarray(case.scenario.sensors),
+        measurements=case.Z[r],
+        extra_series=extra,
+    )

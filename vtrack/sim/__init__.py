@@ -1,0 +1,1 @@
+"""Simulation: synthetic traffic video with ground truth; seed scenarios."""

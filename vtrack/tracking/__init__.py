@@ -1,0 +1,1 @@
+"""Multi-target vehicle tracking on the shared estimation core."""

@@ -1,0 +1,67 @@
+"""Gated global-nearest-neighbour assignment that scales: a k-d tree proposes candidate
+pairs, Mahalanobis gating prunes them, and the optimal assignment is solved per connected
+group of tracks and detections (one big dense Hungarian costs ~35 ms at 1000 x 1000)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+
+def gated_pairs(pred: np.ndarray, S: np.ndarray, dets: np.ndarray, gate: float,
+                radius: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Candidate (track, detection) pairs with squared Mahalanobis distance d2 <= gate.
+
+    pred (T, 2) predicted positions, S (T, 2, 2) their innovation covariances, dets (D, 2),
+    radius (T,) a Euclidean search radius that contains the gate ellipse.
+    Returns track indices, detection indices and the cost d2 + ln det S of each pair.
+    """
+    if len(pred) == 0 or len(dets) == 0:
+        e = np.empty(0, dtype=int)
+        return e, e, np.empty(0)
+    tree = cKDTree(dets)
+    hits = tree.query_ball_point(pred, radius)
+    counts = np.fromiter((len(h) for h in hits), dtype=int, count=len(hits))
+    ti = np.repeat(np.arange(len(pred)), counts)
+    di = np.fromiter((j for h in hits for j in h), dtype=int, count=int(counts.sum()))
+    if len(ti) == 0:
+        return ti, di, np.empty(0)
+    diff = dets[di] - pred[ti]
+    a, b, c = S[ti, 0, 0], S[ti, 0, 1], S[ti, 1, 1]
+    det = a * c - b * b                                   # 2x2 closed forms
+    d2 = (c * diff[:, 0] ** 2 - 2 * b * diff[:, 0] * diff[:, 1] + a * diff[:, 1] ** 2) / det
+    ok = d2 <= gate
+    logdet = np.log(det)
+    return ti[ok], di[ok], d2[ok] + logdet[ok]
+
+
+def assign(ti: np.ndarray, di: np.ndarray, cost: np.ndarray, n_tracks: int, n_dets: int
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """Minimum-cost one-to-one assignment over the candidate pairs, solved per connected
+    component (1x1 components directly, larger ones with scipy's linear_sum_assignment)."""
+    if len(ti) == 0:
+        e = np.empty(0, dtype=int)
+        return e, e
+    graph = coo_matrix((np.ones(len(ti)), (ti, n_tracks + di)),
+                       shape=(n_tracks + n_dets,) * 2)
+    _, label = connected_components(graph, directed=False)
+    comp = label[ti]
+    sizes = np.bincount(comp)
+    single = sizes[comp] == 1            # a component with exactly one pair
+    out_t = [ti[single]]
+    out_d = [di[single]]
+    for c in np.unique(comp[~single]):
+        sel = np.flatnonzero(comp == c)
+        rows, r_inv = np.unique(ti[sel], return_inverse=True)
+        cols, c_inv = np.unique(di[sel], return_inverse=True)
+        big = 1e9
+        M = np.full((len(rows), len(cols)), big)
+        M[r_inv, c_inv] = cost[sel]
+        r, k = linear_sum_assignment(M)
+        ok = M[r, k] < big
+        out_t.append(rows[r[ok]])
+        out_d.append(cols[k[ok]])
+    return np.concatenate(out_t), np.concatenate(out_d)

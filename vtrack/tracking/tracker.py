@@ -1,0 +1,294 @@
+"""Multi-target vehicle tracker: one constant-acceleration Kalman filter per vehicle, all
+stepped together as arrays through the shared core (vtrack.estimation.kalman).
+
+Lifecycle: tentative -> confirmed after `confirm_hits` hits in the last `confirm_window`
+frames -> coasting on the prediction while detections are lost -> deleted after
+`max_coast_frames` misses (a tentative track after `tentative_misses`) or when its predicted
+centre leaves the image. A track's rows from before confirmation are reported at
+confirmation (so its start is not lost) and its id is assigned then (ids have no gaps).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+from scipy.stats import chi2
+
+from vtrack.estimation.kalman import kf_predict, kf_update
+from vtrack.estimation.models import ConstantAcceleration
+from vtrack.tracking.association import assign, gated_pairs
+from vtrack.tracking.measurements import finite_difference_measurement
+
+
+def _h(text: str) -> dict:
+    return {"help": text}
+
+
+@dataclass
+class TrackerConfig:
+    """Tracker parameters ([tracker] in the TOML config)."""
+
+    measurement: str = field(default="finite-difference", metadata=_h(
+        "'finite-difference': position + finite-difference velocity and acceleration "
+        "(seed 001 eqs. 24-26, H = I6); 'position': position only"))
+    jerk_psd: float = field(default=1e4, metadata=_h(
+        "white-jerk spectral density q_j of the constant-acceleration model, px^2/s^5"))
+    detection_sigma: float = field(default=2.0, metadata=_h(
+        "std of a detected centre, px (R of the position rows; the differences follow)"))
+    init_speed_sigma: float = field(default=150.0, metadata=_h(
+        "prior std of a new track's velocity, px/s"))
+    init_accel_sigma: float = field(default=100.0, metadata=_h(
+        "prior std of a new track's acceleration, px/s^2"))
+    gate_probability: float = field(default=0.999, metadata=_h(
+        "chi-square gate on the predicted position (2 dof)"))
+    max_gate_px: float = field(default=80.0, metadata=_h(
+        "upper bound of the gate's Euclidean radius, px"))
+    confirm_hits: int = field(default=3, metadata=_h("M of the M-of-N confirmation"))
+    confirm_window: int = field(default=5, metadata=_h("N of the M-of-N confirmation"))
+    max_coast_frames: int = field(default=15, metadata=_h(
+        "frames a confirmed track coasts on its prediction before deletion"))
+    tentative_misses: int = field(default=2, metadata=_h(
+        "misses that delete a track not yet confirmed"))
+    size_smoothing: float = field(default=0.5, metadata=_h(
+        "weight of the newest detection box in the track's box size (0..1]"))
+    edge_margin_px: float = field(default=0.0, metadata=_h(
+        "a track whose predicted centre is this far outside the image is deleted"))
+
+    def validate(self) -> None:
+        if self.measurement not in ("finite-difference", "position"):
+            raise ValueError("tracker.measurement must be 'finite-difference' or 'position'")
+        for name in ("jerk_psd", "detection_sigma", "init_speed_sigma", "init_accel_sigma",
+                     "max_gate_px"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"tracker.{name} must be positive")
+        if not 0 < self.gate_probability < 1:
+            raise ValueError("tracker.gate_probability must be in (0, 1)")
+        if not 1 <= self.confirm_hits <= self.confirm_window <= 30:
+            raise ValueError("tracker needs 1 <= confirm_hits <= confirm_window <= 30")
+        if self.max_coast_frames < 0 or self.tentative_misses < 1:
+            raise ValueError("tracker.max_coast_frames >= 0 and tentative_misses >= 1")
+        if not 0 < self.size_smoothing <= 1:
+            raise ValueError("tracker.size_smoothing must be in (0, 1]")
+
+
+ROW_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf")  # conf 1 = detected, < 1 = coasted
+
+
+@dataclass
+class FrameTracks:
+    """The confirmed tracks after one frame (arrays over tracks) and the rows it emits."""
+
+    ids: np.ndarray            # (K,) track ids
+    boxes: np.ndarray          # (K, 4) x, y, w, h clipped to the image
+    coasted: np.ndarray        # (K,) True when no detection updated the track this frame
+    states: np.ndarray         # (K, 6) posterior [x, y, vx, vy, ax, ay]
+    covariances: np.ndarray    # (K, 6, 6)
+    innovations: np.ndarray    # (K,) |position innovation| in px (nan when coasted)
+    rows: np.ndarray           # (R, 7) ROW_COLUMNS to write, incl. rows back-filled at confirmation
+    detection_of: np.ndarray   # (K,) index of the detection used (-1 when coasted)
+
+
+class Tracker:
+    """Array-based multi-target tracker. Call `step(frame, t, centers, boxes)` every frame."""
+
+    def __init__(self, cfg: TrackerConfig, width: int, height: int) -> None:
+        cfg.validate()
+        self.cfg = cfg
+        self.width, self.height = width, height
+        self.model = ConstantAcceleration(cfg.jerk_psd)
+        self.gate = float(chi2.ppf(cfg.gate_probability, 2))
+        self.next_id = 1
+        self.next_uid = 0
+        self.t_prev: float | None = None
+        n = 0
+        self.x = np.zeros((n, 6))
+        self.P = np.zeros((n, 6, 6))
+        self.size = np.zeros((n, 2))
+        self.hist_p = np.zeros((n, 3, 2))   # last three detected centres, newest first
+        self.hist_t = np.zeros((n, 3))
+        self.count = np.zeros(n, dtype=int)  # detections so far (capped at 3 for the FDs)
+        self.hitmask = np.zeros(n, dtype=np.int64)  # bit i: hit i frames ago
+        self.misses = np.zeros(n, dtype=int)
+        self.id = np.zeros(n, dtype=int)     # 0 while tentative
+        self.uid = np.zeros(n, dtype=int)
+        self.pending: dict[int, list[np.ndarray]] = {}  # rows of tentative tracks, by uid
+
+    # ----------------------------------------------------------------- helpers
+    _arrays = ("x", "P", "size", "hist_p", "hist_t", "count", "hitmask", "misses", "id", "uid")
+
+    def _keep(self, keep: np.ndarray) -> None:
+        for name in self._arrays:
+            setattr(self, name, getattr(self, name)[keep])
+
+    def _append(self, **values: np.ndarray) -> None:
+        for name in self._arrays:
+            setattr(self, name, np.concatenate([getattr(self, name), values[name]]))
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    def boxes(self) -> np.ndarray:
+        """Boxes (x, y, w, h) centred on the filtered positions, clipped to the image."""
+        half = self.size / 2
+        x0 = np.clip(self.x[:, 0] - half[:, 0], 0, self.width)
+        y0 = np.clip(self.x[:, 1] - half[:, 1], 0, self.height)
+        x1 = np.clip(self.x[:, 0] + half[:, 0], 0, self.width)
+        y1 = np.clip(self.x[:, 1] + half[:, 1], 0, self.height)
+        return np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)
+
+    # -------------------------------------------------------------------- step
+    def step(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray) -> FrameTracks:
+        """Advance all tracks to time t (s) and assimilate this frame's detections."""
+        cfg = self.cfg
+        centers = np.asarray(centers, dtype=float).reshape(-1, 2)
+        boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
+        dt = 0.0 if self.t_prev is None else t - self.t_prev
+        self.t_prev = t
+        if len(self) and dt > 0:
+            F = self.model.transition(dt)
+            self.x, self.P = kf_predict(self.x, self.P, F, self.model.Q(dt))
+
+        # Gate and assign on the predicted position.
+        r2 = cfg.detection_sigma**2
+        S = self.P[:, :2, :2] + r2 * np.eye(2)
+        radius = np.minimum(np.sqrt(self.gate * np.linalg.eigvalsh(S)[:, -1]), cfg.max_gate_px) \
+            if len(self) else np.zeros(0)
+        ti, di, cost = gated_pairs(self.x[:, :2], S, centers, self.gate, radius)
+        mt, md = assign(ti, di, cost, len(self), len(centers))
+        mt, md = self._drop_merged(mt, md, boxes)
+
+        self._update(mt, centers[md], boxes[md], t)
+        hit = np.zeros(len(self), dtype=bool)
+        hit[mt] = True
+        self.hitmask = ((self.hitmask << 1) | hit) & ((1 << cfg.confirm_window) - 1)
+        self.misses = np.where(hit, 0, self.misses + 1)
+        innov = np.full(len(self), np.nan)
+        innov[mt] = self._last_innov
+        det_of = np.full(len(self), -1)
+        det_of[mt] = md
+
+        spawned = self._spawn(frame, t, centers, boxes, md)
+        innov = np.concatenate([innov, np.full(spawned, np.nan)])
+        det_of = np.concatenate([det_of, self._spawned_det])
+        hit = np.concatenate([hit, np.ones(spawned, dtype=bool)])
+
+        keep = self._survivors()
+        self._keep(keep)
+        hit, innov, det_of = hit[keep], innov[keep], det_of[keep]
+        rows = self._emit(frame, hit)
+        conf = self.id > 0
+        return FrameTracks(ids=self.id[conf].copy(), boxes=self.boxes()[conf],
+                           coasted=~hit[conf], states=self.x[conf].copy(),
+                           covariances=self.P[conf].copy(), innovations=innov[conf],
+                           rows=rows, detection_of=det_of[conf])
+
+    def _drop_merged(self, mt: np.ndarray, md: np.ndarray, boxes: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """A detection whose box holds the predicted centres of two or more confirmed tracks is
+        a merged blob of several vehicles: its centroid belongs to none of them, so those
+        tracks coast instead of being pulled toward the middle."""
+        conf = np.flatnonzero(self.id > 0)
+        if len(md) == 0 or len(conf) < 2:
+            return mt, md
+        bi, _ = points_in_boxes(self.x[conf, :2], boxes[md])
+        merged = np.bincount(bi, minlength=len(md)) >= 2
+        return mt[~merged], md[~merged]
+
+    def _update(self, mt: np.ndarray, centers: np.ndarray, boxes: np.ndarray, t: float) -> None:
+        cfg = self.cfg
+        self._last_innov = np.zeros(len(mt))
+        if len(mt) == 0:
+            return
+        self.hist_p[mt] = np.concatenate([centers[:, None], self.hist_p[mt, :2]], axis=1)
+        self.hist_t[mt] = np.concatenate([np.full((len(mt), 1), t), self.hist_t[mt, :2]], axis=1)
+        self.count[mt] = np.minimum(self.count[mt] + 1, 3)
+        z, R, mask = finite_difference_measurement(
+            self.hist_p[mt], self.hist_t[mt], self.count[mt], cfg.detection_sigma,
+            position_only=cfg.measurement == "position")
+        nu = z - self.x[mt]
+        self._last_innov = np.hypot(nu[:, 0], nu[:, 1])
+        H = np.broadcast_to(np.eye(6), (len(mt), 6, 6))
+        self.x[mt], self.P[mt], _ = kf_update(self.x[mt], self.P[mt], nu, H, R, mask=mask)
+        a = cfg.size_smoothing
+        self.size[mt] = a * boxes[:, 2:] + (1 - a) * self.size[mt]
+
+    def _spawn(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
+               used: np.ndarray) -> int:
+        """Start tentative tracks on unassigned detections that no confirmed track's box
+        already covers (a fragment of a tracked vehicle is not a new vehicle)."""
+        free = np.ones(len(centers), dtype=bool)
+        free[used] = False
+        conf = self.id > 0
+        if conf.any() and free.any():
+            idx = np.flatnonzero(free)
+            _, covered = points_in_boxes(centers[idx], self.boxes()[conf])
+            free[idx[covered]] = False
+        new = np.flatnonzero(free)
+        self._spawned_det = new
+        k = len(new)
+        if k == 0:
+            return 0
+        cfg = self.cfg
+        x = np.zeros((k, 6))
+        x[:, :2] = centers[new]
+        P0 = np.diag([cfg.detection_sigma**2] * 2 + [cfg.init_speed_sigma**2] * 2
+                     + [cfg.init_accel_sigma**2] * 2)
+        hist_p = np.zeros((k, 3, 2))
+        hist_p[:, 0] = centers[new]
+        hist_t = np.zeros((k, 3))
+        hist_t[:, 0] = t
+        uid = np.arange(self.next_uid, self.next_uid + k)
+        self.next_uid += k
+        self._append(x=x, P=np.repeat(P0[None], k, axis=0), size=boxes[new, 2:].copy(),
+                     hist_p=hist_p, hist_t=hist_t, count=np.ones(k, dtype=int),
+                     hitmask=np.ones(k, dtype=np.int64), misses=np.zeros(k, dtype=int),
+                     id=np.zeros(k, dtype=int), uid=uid)
+        return k
+
+    def _survivors(self) -> np.ndarray:
+        cfg = self.cfg
+        m = cfg.edge_margin_px
+        inside = ((self.x[:, 0] >= -m) & (self.x[:, 0] <= self.width + m)
+                  & (self.x[:, 1] >= -m) & (self.x[:, 1] <= self.height + m))
+        limit = np.where(self.id > 0, cfg.max_coast_frames, cfg.tentative_misses - 1)
+        keep = inside & (self.misses <= limit)
+        for uid in self.uid[~keep]:
+            self.pending.pop(int(uid), None)
+        return keep
+
+    def _emit(self, frame: int, hit: np.ndarray) -> np.ndarray:
+        """Rows of this frame; tentative tracks buffer theirs until confirmation."""
+        cfg = self.cfg
+        conf = np.where(hit, 1.0,
+                        np.clip(1.0 - self.misses / (cfg.max_coast_frames + 1), 0.05, 0.95))
+        rows = np.column_stack([np.full(len(self), frame), self.id, self.boxes(), conf])
+        out = [rows[self.id > 0]]
+        hits = np.bitwise_count(self.hitmask)
+        for i in np.flatnonzero(self.id == 0):
+            uid = int(self.uid[i])
+            self.pending.setdefault(uid, []).append(rows[i])
+            if hits[i] >= cfg.confirm_hits and hit[i]:
+                self.id[i] = self.next_id
+                self.next_id += 1
+                back = np.array(self.pending.pop(uid))
+                back[:, 1] = self.id[i]
+                out.append(back)
+        return np.concatenate(out)
+
+
+def points_in_boxes(points: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """All (box, point) index pairs with the point inside the box (x, y, w, h); a k-d tree over
+    the points keeps this near-linear for thousands of boxes."""
+    if len(points) == 0 or len(boxes) == 0:
+        e = np.empty(0, dtype=int)
+        return e, e
+    centre = boxes[:, :2] + boxes[:, 2:] / 2
+    hits = cKDTree(points).query_ball_point(centre, np.hypot(boxes[:, 2], boxes[:, 3]) / 2)
+    counts = np.fromiter((len(h) for h in hits), dtype=int, count=len(hits))
+    bi = np.repeat(np.arange(len(boxes)), counts)
+    pi = np.fromiter((j for h in hits for j in h), dtype=int, count=int(counts.sum()))
+    d = np.abs(points[pi] - centre[bi])
+    inside = np.all(d <= boxes[bi, 2:] / 2, axis=1)
+    return bi[inside], pi[inside]

@@ -1,0 +1,1 @@
+"""Visualisation back-ends (rerun). Nothing here is imported unless asked for."""
