@@ -59,10 +59,12 @@ def kf_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np
         np.linalg.cholesky(S)  # the positive-definiteness check
     except np.linalg.LinAlgError:
         raise NotPositiveDefiniteError("innovation covariance S is not positive definite") from None
-    S_inv = symmetrize(np.linalg.inv(S))
-    K = PHt @ S_inv
+    # One solve with S for the gain and the NIS together: S^-1 [H P | nu] (no explicit inverse).
+    sol = np.linalg.solve(S, np.concatenate([_T(PHt), nu[..., :, None]], axis=-1))
+    Kt = sol[..., :-1]
+    K = _T(Kt)
     x_new = x + (K @ nu[..., None])[..., 0]
     A = np.eye(P.shape[-1]) - K @ H
-    P_new = symmetrize(A @ P @ _T(A) + K @ R @ _T(K))
-    nis = (nu[..., None, :] @ S_inv @ nu[..., :, None])[..., 0, 0]
+    P_new = symmetrize(A @ P @ _T(A) + K @ R @ Kt)
+    nis = np.sum(nu * sol[..., -1], axis=-1)
     return x_new, P_new, Innovation(nu=nu, S=S, K=K, nis=nis)

@@ -52,7 +52,12 @@ class TrackerConfig:
     tentative_misses: int = field(default=2, metadata=_h(
         "misses that delete a track not yet confirmed"))
     size_smoothing: float = field(default=0.5, metadata=_h(
-        "weight of the newest detection box in the track's box size (0..1]"))
+        "weight of a detection that is larger than the track's box in the box size (0..1]"))
+    max_size_growth: float = field(default=0.1, metadata=_h(
+        "largest relative growth of a track's box per frame away from the image border"))
+    size_shrink: float = field(default=0.05, metadata=_h(
+        "weight of a smaller detection in the box size: small, because a vehicle partly "
+        "hidden by an occluder or the image border looks smaller (0..1]"))
     edge_margin_px: float = field(default=0.0, metadata=_h(
         "a track whose predicted centre is this far outside the image is deleted"))
 
@@ -69,8 +74,8 @@ class TrackerConfig:
             raise ValueError("tracker needs 1 <= confirm_hits <= confirm_window <= 30")
         if self.max_coast_frames < 0 or self.tentative_misses < 1:
             raise ValueError("tracker.max_coast_frames >= 0 and tentative_misses >= 1")
-        if not 0 < self.size_smoothing <= 1:
-            raise ValueError("tracker.size_smoothing must be in (0, 1]")
+        if not (0 < self.size_smoothing <= 1 and 0 < self.size_shrink <= 1):
+            raise ValueError("tracker.size_smoothing and size_shrink must be in (0, 1]")
 
 
 ROW_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf")  # conf 1 = detected, < 1 = coasted
@@ -150,6 +155,7 @@ class Tracker:
             F = self.model.transition(dt)
             self.x, self.P = kf_predict(self.x, self.P, F, self.model.Q(dt))
 
+        centers, boxes = self._merge_fragments(centers, boxes)
         # Gate and assign on the predicted position.
         r2 = cfg.detection_sigma**2
         S = self.P[:, :2, :2] + r2 * np.eye(2)
@@ -157,7 +163,7 @@ class Tracker:
             if len(self) else np.zeros(0)
         ti, di, cost = gated_pairs(self.x[:, :2], S, centers, self.gate, radius)
         mt, md = assign(ti, di, cost, len(self), len(centers))
-        mt, md = self._drop_merged(mt, md, boxes)
+        mt, md = self._resolve_shared(mt, md, boxes)
 
         self._update(mt, centers[md], boxes[md], t)
         hit = np.zeros(len(self), dtype=bool)
@@ -174,33 +180,80 @@ class Tracker:
         det_of = np.concatenate([det_of, self._spawned_det])
         hit = np.concatenate([hit, np.ones(spawned, dtype=bool)])
 
-        keep = self._survivors()
+        inside, alive = self._fate()
+        rows = self._emit(frame, hit, inside, alive)
+        keep = inside & alive
         self._keep(keep)
         hit, innov, det_of = hit[keep], innov[keep], det_of[keep]
-        rows = self._emit(frame, hit)
         conf = self.id > 0
         return FrameTracks(ids=self.id[conf].copy(), boxes=self.boxes()[conf],
                            coasted=~hit[conf], states=self.x[conf].copy(),
                            covariances=self.P[conf].copy(), innovations=innov[conf],
                            rows=rows, detection_of=det_of[conf])
 
-    def _drop_merged(self, mt: np.ndarray, md: np.ndarray, boxes: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray]:
-        """A detection whose box holds the predicted centres of two or more confirmed tracks is
-        a merged blob of several vehicles: its centroid belongs to none of them, so those
-        tracks coast instead of being pulled toward the middle."""
+    def _merge_fragments(self, centers: np.ndarray, boxes: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Detections whose centres all fall inside one confirmed track's predicted box (and in
+        no other) are pieces of one vehicle cut by an occluder: join them into their union."""
         conf = np.flatnonzero(self.id > 0)
-        if len(md) == 0 or len(conf) < 2:
+        if len(conf) == 0 or len(centers) < 2:
+            return centers, boxes
+        bi, di = points_in_boxes(centers, self.boxes()[conf])
+        claims = np.bincount(di, minlength=len(centers))
+        ok = claims[di] == 1
+        bi, di = bi[ok], di[ok]
+        per_box = np.bincount(bi, minlength=len(conf))
+        if not np.any(per_box >= 2):
+            return centers, boxes
+        keep = np.ones(len(centers), dtype=bool)
+        boxes = boxes.copy()
+        size = self.size[conf]
+        for b in np.flatnonzero(per_box >= 2):
+            parts = di[bi == b]
+            x0 = boxes[parts, :2].min(axis=0)
+            x1 = (boxes[parts, :2] + boxes[parts, 2:]).max(axis=0)
+            if np.any(x1 - x0 > 1.2 * size[b]):
+                continue  # the pieces span more than one vehicle: separate vehicles
+            boxes[parts[0]] = [*x0, *(x1 - x0)]
+            keep[parts[1:]] = False
+        boxes = boxes[keep]
+        return boxes[:, :2] + boxes[:, 2:] / 2, boxes
+
+    def _resolve_shared(self, mt: np.ndarray, md: np.ndarray, boxes: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """Detections whose box holds the predicted centres of two or more confirmed tracks.
+
+        If the detection is no bigger than the largest of those tracks' boxes, it is one
+        vehicle followed by duplicate tracks: the oldest track takes the detection and the
+        younger ones are deleted. If it is bigger, it is a merged blob of several vehicles: its
+        centroid belongs to none of them, so those tracks coast instead of being pulled toward
+        the middle.
+        """
+        conf = np.flatnonzero(self.id > 0)
+        if len(boxes) == 0 or len(conf) < 2:
             return mt, md
-        bi, _ = points_in_boxes(self.x[conf, :2], boxes[md])
-        merged = np.bincount(bi, minlength=len(md)) >= 2
-        return mt[~merged], md[~merged]
+        bi, pi = points_in_boxes(self.x[conf, :2], boxes)
+        # A track whose centre lies in more than one detection box has a detection of its own.
+        alone = np.bincount(pi, minlength=len(conf))[pi] == 1
+        bi, pi = bi[alone], pi[alone]
+        shared = np.flatnonzero(np.bincount(bi, minlength=len(boxes)) >= 2)
+        for d in shared:
+            tracks = conf[pi[bi == d]]
+            area = boxes[d, 2] * boxes[d, 3]
+            taken = np.isin(mt, tracks) | (md == d)
+            mt, md = mt[~taken], md[~taken]
+            if area <= 1.3 * np.prod(self.size[tracks], axis=1).min():
+                oldest = tracks[np.argmin(self.uid[tracks])]
+                mt, md = np.append(mt, oldest), np.append(md, d)
+                self.misses[np.setdiff1d(tracks, oldest)] = np.iinfo(int).max // 2
+        return mt, md
 
     def _update(self, mt: np.ndarray, centers: np.ndarray, boxes: np.ndarray, t: float) -> None:
         cfg = self.cfg
         self._last_innov = np.zeros(len(mt))
         if len(mt) == 0:
             return
+        centers = self._visible_part_centre(mt, boxes)
         self.hist_p[mt] = np.concatenate([centers[:, None], self.hist_p[mt, :2]], axis=1)
         self.hist_t[mt] = np.concatenate([np.full((len(mt), 1), t), self.hist_t[mt, :2]], axis=1)
         self.count[mt] = np.minimum(self.count[mt] + 1, 3)
@@ -211,8 +264,32 @@ class Tracker:
         self._last_innov = np.hypot(nu[:, 0], nu[:, 1])
         H = np.broadcast_to(np.eye(6), (len(mt), 6, 6))
         self.x[mt], self.P[mt], _ = kf_update(self.x[mt], self.P[mt], nu, H, R, mask=mask)
-        a = cfg.size_smoothing
-        self.size[mt] = a * boxes[:, 2:] + (1 - a) * self.size[mt]
+        size = self.size[mt]
+        grow = boxes[:, 2:] > size
+        a = np.where(grow, cfg.size_smoothing, cfg.size_shrink)
+        new = a * boxes[:, 2:] + (1 - a) * size
+        # A blob that suddenly outgrows the vehicle is usually two vehicles merged: cap the
+        # growth per frame (a vehicle coming into view at the border grows by about its
+        # displacement per frame).
+        dt = np.maximum(self.hist_t[mt, 0] - self.hist_t[mt, 1], 0.0)
+        step = np.abs(self.x[mt, 2:4]) * np.where(self.count[mt] >= 2, dt, 0.0)[:, None]
+        self.size[mt] = np.minimum(new, size * (1 + cfg.max_size_growth) + step + 2.0)
+
+    def _visible_part_centre(self, mt: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """Centre of the track's full-size box that contains the detected box and lies closest
+        to the prediction. A detection smaller than the vehicle (partly hidden by an occluder
+        or the image border) shows only part of it; its own centre would drag the track
+        toward the visible part. Per axis the full box [c - s/2, c + s/2] must contain
+        [d0, d1], so c is the prediction clipped to [d1 - s/2, d0 + s/2]; for a full-size
+        detection that interval is the detection's centre."""
+        half = self.size[mt] / 2
+        d0 = boxes[:, :2]
+        d1 = boxes[:, :2] + boxes[:, 2:]
+        lo = d1 - half
+        hi = d0 + half
+        centre = (d0 + d1) / 2
+        fits = lo <= hi
+        return np.where(fits, np.clip(self.x[mt, :2], lo, hi), centre)
 
     def _spawn(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
                used: np.ndarray) -> int:
@@ -247,35 +324,54 @@ class Tracker:
                      id=np.zeros(k, dtype=int), uid=uid)
         return k
 
-    def _survivors(self) -> np.ndarray:
+    def _fate(self) -> tuple[np.ndarray, np.ndarray]:
+        """(inside, alive): whether each predicted centre is still in the image, and whether
+        the track is within its miss limit."""
         cfg = self.cfg
         m = cfg.edge_margin_px
         inside = ((self.x[:, 0] >= -m) & (self.x[:, 0] <= self.width + m)
                   & (self.x[:, 1] >= -m) & (self.x[:, 1] <= self.height + m))
         limit = np.where(self.id > 0, cfg.max_coast_frames, cfg.tentative_misses - 1)
-        keep = inside & (self.misses <= limit)
-        for uid in self.uid[~keep]:
-            self.pending.pop(int(uid), None)
-        return keep
+        return inside, self.misses <= limit
 
-    def _emit(self, frame: int, hit: np.ndarray) -> np.ndarray:
-        """Rows of this frame; tentative tracks buffer theirs until confirmation."""
+    def _emit(self, frame: int, hit: np.ndarray, inside: np.ndarray, alive: np.ndarray
+              ) -> np.ndarray:
+        """The rows that became final this frame.
+
+        Rows wait in `pending` until they are known to be part of a track: a tentative
+        track's rows until it is confirmed (they are then reported with its new id); a
+        coasting track's predicted rows until a detection re-acquires it or its prediction
+        leaves the image. A track deleted after `max_coast_frames` misses never got its
+        vehicle back, so its trailing predictions are dropped rather than reported.
+        """
         cfg = self.cfg
         conf = np.where(hit, 1.0,
                         np.clip(1.0 - self.misses / (cfg.max_coast_frames + 1), 0.05, 0.95))
         rows = np.column_stack([np.full(len(self), frame), self.id, self.boxes(), conf])
-        out = [rows[self.id > 0]]
+        has_pending = np.isin(self.uid, np.fromiter(self.pending, dtype=int, count=len(self.pending)))
+        simple = (self.id > 0) & hit & inside & alive & ~has_pending
+        out = [rows[simple]]
         hits = np.bitwise_count(self.hitmask)
-        for i in np.flatnonzero(self.id == 0):
+        for i in np.flatnonzero(~simple):
             uid = int(self.uid[i])
+            if not alive[i]:
+                self.pending.pop(uid, None)
+                continue
+            if not inside[i]:
+                if self.id[i] > 0:
+                    out.extend(self.pending.pop(uid, []))
+                else:
+                    self.pending.pop(uid, None)
+                continue
             self.pending.setdefault(uid, []).append(rows[i])
-            if hits[i] >= cfg.confirm_hits and hit[i]:
+            if self.id[i] == 0 and hits[i] >= cfg.confirm_hits and hit[i]:
                 self.id[i] = self.next_id
                 self.next_id += 1
+            if self.id[i] > 0 and hit[i]:
                 back = np.array(self.pending.pop(uid))
                 back[:, 1] = self.id[i]
                 out.append(back)
-        return np.concatenate(out)
+        return np.vstack(out) if out else np.zeros((0, 7))
 
 
 def points_in_boxes(points: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
