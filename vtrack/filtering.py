@@ -222,7 +222,11 @@ def config_from_dict(doc: dict[str, Any], path: str = "<config>") -> FilterConfi
         raw = sec.get("sensors")
         if not isinstance(raw, list) or not raw:
             sec.fail(f"must be a non-empty list of [x, y] pairs, got {raw!r}", "sensors")
-        sensors = np.array([sec.vector("sensors", 2, value=s) for s in raw], dtype=float)
+        for i, s in enumerate(raw):
+            if not isinstance(s, list) or len(s) != 2:
+                sec.fail(f"sensor {i} must be an [x, y] pair, got {s!r}", "sensors")
+        sensors = np.array([[sec.number("sensors", value=v, label=f"sensors[{i}]") for v in s]
+                            for i, s in enumerate(raw)], dtype=float)
         m = len(sensors)
     else:
         sec.check_keys(_SECTION_KEYS["measurement"] - {"sensors"})
@@ -428,7 +432,9 @@ def run_filter(filt: GaussianFilter, t: np.ndarray, z: np.ndarray, dt0: float,
                     raise EstimationError("the posterior mean or covariance is not finite")
             except (EstimationError, np.linalg.LinAlgError, ArithmeticError) as exc:
                 cause = " ".join(str(exc).split())
-                if not isinstance(exc, EstimationError):
+                if isinstance(exc, OverflowError):
+                    cause = "numerical overflow (is the time step or a value absurdly large?)"
+                elif not isinstance(exc, EstimationError):
                     cause = f"numerical failure ({type(exc).__name__}: {cause})"
                 raise FilterRunError(k, float(t[k]), cause) from exc
             xs[k] = x
@@ -439,7 +445,7 @@ def run_filter(filt: GaussianFilter, t: np.ndarray, z: np.ndarray, dt0: float,
 
 def estimates_rows(t: np.ndarray, xs: np.ndarray, Ps: np.ndarray) -> list[list[str]]:
     """ESTIMATES.csv rows at full precision (repr of each float, which round-trips)."""
-    flat = np.concatenate([t[:, None], xs, Ps.reshape(len(t), -1)], axis=1)
+    flat = np.concatenate([t[:, None], xs, Ps.reshape(len(t), xs.shape[1] ** 2)], axis=1)
     return [[repr(float(v)) for v in row] for row in flat]
 
 
@@ -480,6 +486,6 @@ def filter_files(config: str, measurements: str, out: str, rerun: str | None = N
         raise InputError(f"{measurements}: line {meas.lines[exc.row]} (t = {exc.t!r}): filter "
                          f"{cfg.kind!r} failed: {exc.cause}") from None
     if log is not None:
-        log(meas.t, xs, Ps, meas.z, cfg, rerun)
+        log(meas.t, xs, Ps, meas.z, cfg.sensors, rerun)
     write_estimates(out, cfg, meas.t, xs, Ps)
     return 0

@@ -39,6 +39,8 @@ __all__ = [
     "iae_measurement_noise",
     "fading_factors",
     "scale_noise",
+    "ankf1_update",
+    "ankf2_update",
     "InnovationAdaptiveEKF",
     "FadingAdaptiveEKF",
 ]
@@ -122,6 +124,62 @@ def scale_noise(R: np.ndarray, lam: np.ndarray) -> np.ndarray:
     return R * s[..., :, None] * s[..., None, :]
 
 
+def _diag_embed(d: np.ndarray) -> np.ndarray:
+    return d[..., :, None] * np.eye(d.shape[-1])
+
+
+def ankf1_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray,
+                 R_nom: np.ndarray, window: InnovationWindow, r_floor: float, adapt_r: bool,
+                 adapt_q: bool, R_hat: np.ndarray | None
+                 ) -> tuple[np.ndarray, np.ndarray, Innovation, np.ndarray,
+                            np.ndarray | None, np.ndarray | None]:
+    """One ANKF1 update with a FULL measurement vector (SEEDS 2.4); arrays may carry leading
+    batch axes (one window of that batch shape). Pushes nu; once the window is full
+    R_hat = iae_measurement_noise(...) (adapt_r) and Q_hat = K C_hat K' (adapt_q); the update
+    is kalman.kf_update with diag(R_hat) (or R_nom before the first estimate).
+
+    Returns (x, P, info, R used, R_hat (diag) or the previous one, Q_hat or None)."""
+    window.push(nu)
+    C_hat = None
+    if window.full:
+        C_hat = window.covariance()
+        if adapt_r:
+            R_hat = iae_measurement_noise(C_hat, H @ P @ np.swapaxes(H, -1, -2), R_nom, r_floor)
+    R = _diag_embed(R_hat) if (adapt_r and R_hat is not None) else R_nom
+    x, P, info = kf_update(x, P, nu, H, R)
+    Q_hat = None
+    if adapt_q and C_hat is not None:
+        Q_hat = symmetrize(info.K @ C_hat @ np.swapaxes(info.K, -1, -2))
+    return x, P, info, R, R_hat, Q_hat
+
+
+def ankf2_update(x: np.ndarray, Pprop: np.ndarray, Q: np.ndarray, nu: np.ndarray,
+                 H: np.ndarray, R_nom: np.ndarray, window: InnovationWindow,
+                 lambda_max: float, ratio_min: float, ratio_max: float, multiple: bool,
+                 fade_prior: bool, lambda_R: np.ndarray | None
+                 ) -> tuple[np.ndarray, np.ndarray, Innovation, np.ndarray, np.ndarray,
+                            np.ndarray | None]:
+    """One ANKF2 update with a FULL measurement vector (SEEDS 2.4); arrays may carry leading
+    batch axes. Pushes nu; once the window is full, C = H (Pprop + Q) H' + R_nom,
+    (lambda_P, lambda_R) = fading_factors(C_hat, C, ...), P- = lambda_P Pprop + Q
+    (fade_prior: lambda_P (Pprop + Q)) and R_bar = lambda_R R_nom; then kalman.kf_update.
+    Before that (or with lambda_max = 1) it is the EKF update of P- = Pprop + Q.
+
+    Returns (x, P, info, R used, lambda_P, lambda_R or the previous one)."""
+    P_prior = symmetrize(Pprop + Q)
+    lam_P = np.ones(np.shape(x)[:-1])
+    window.push(nu)
+    if window.full:
+        C = symmetrize(H @ P_prior @ np.swapaxes(H, -1, -2) + R_nom)
+        lam_P, lambda_R = fading_factors(window.covariance(), C, lambda_max, ratio_min,
+                                         ratio_max, multiple)
+        lp = np.asarray(lam_P)[..., None, None]
+        P_prior = symmetrize(lp * (Pprop + Q) if fade_prior else lp * Pprop + Q)
+    R = R_nom if lambda_R is None else scale_noise(R_nom, lambda_R)
+    x, P, info = kf_update(x, P_prior, nu, H, R)
+    return x, P, info, R, lam_P, lambda_R
+
+
 def _int_option(name: str, value: object, lo: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
             or not float(value).is_integer() or value < lo:
@@ -198,24 +256,20 @@ class InnovationAdaptiveEKF(ExtendedKalmanFilter):
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
         H = meas.H(self.x)
         nu = meas.residual(z, meas.h(self.x))
-        full = meas.m == self.measurement.m
-        R = meas.R
-        C_hat = None
-        self.adapted = False
-        if full:
-            self.window.push(nu)
-            if self.window.full:
-                C_hat = self.window.covariance()
-                if self.adapt_r:
-                    self.R_hat = iae_measurement_noise(C_hat, H @ self.P @ H.T, meas.R,
-                                                       self.r_floor)
-                self.adapted = True
+        if meas.m == self.measurement.m:          # full vector: the window step
+            self.x, self.P, info, self.R_used, self.R_hat, Q_hat = ankf1_update(
+                self.x, self.P, nu, H, meas.R, self.window, self.r_floor, self.adapt_r,
+                self.adapt_q, self.R_hat)
+            self.adapted = self.window.full
+            if Q_hat is not None:
+                self.Q_hat = Q_hat
+            return info
+        R = meas.R                                # partial vector: last R_hat, no window
         if self.adapt_r and self.R_hat is not None:
             R = np.diag(self.R_hat[_rows(meas, self.measurement)])
         self.x, self.P, info = kf_update(self.x, self.P, nu, H, R)
-        if self.adapt_q and C_hat is not None:
-            self.Q_hat = symmetrize(info.K @ C_hat @ info.K.T)
         self.R_used = R
+        self.adapted = False
         return info
 
 
@@ -283,29 +337,23 @@ class FadingAdaptiveEKF(ExtendedKalmanFilter):
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
         H = meas.H(self.x)
         nu = meas.residual(z, meas.h(self.x))
-        full = meas.m == self.measurement.m
-        P_prior = self.P
-        self.adapted = False
-        self.lambda_P = 1.0
-        if full:
-            self.window.push(nu)
-            if self.window.full and self._Pprop is not None:
-                C = symmetrize(H @ self.P @ H.T + meas.R)
-                lam_P, lam_R = fading_factors(self.window.covariance(), C, self.lambda_max,
-                                              self.ratio_min, self.ratio_max,
-                                              self.multiple_factors)
-                self.lambda_P, self.lambda_R = float(lam_P), lam_R
-                if self.fade_prior:
-                    P_prior = symmetrize(self.lambda_P * (self._Pprop + self._Q))
-                else:
-                    P_prior = symmetrize(self.lambda_P * self._Pprop + self._Q)
-                self.adapted = True
-        R = meas.R
-        if self.lambda_R is not None:
-            R = scale_noise(meas.R, self.lambda_R[_rows(meas, self.measurement)])
-        self.x, self.P, info = kf_update(self.x, P_prior, nu, H, R)
+        if meas.m == self.measurement.m:          # full vector: the window step
+            if self._Pprop is None:               # no prediction since the last update:
+                Pprop, Q, lam_max = self.P, np.zeros_like(self.P), 1.0   # nothing to fade
+            else:
+                Pprop, Q, lam_max = self._Pprop, self._Q, self.lambda_max
+            self.x, self.P, info, self.R_used, lam_P, self.lambda_R = ankf2_update(
+                self.x, Pprop, Q, nu, H, meas.R, self.window, lam_max, self.ratio_min,
+                self.ratio_max, self.multiple_factors, self.fade_prior, self.lambda_R)
+            self.lambda_P = float(lam_P)
+            self.adapted = self.window.full
+        else:                                     # partial vector: last lambda_R, no fading
+            R = meas.R
+            if self.lambda_R is not None:
+                R = scale_noise(meas.R, self.lambda_R[_rows(meas, self.measurement)])
+            self.x, self.P, info = kf_update(self.x, self.P, nu, H, R)
+            self.R_used, self.lambda_P, self.adapted = R, 1.0, False
         self._Pprop = None     # fading applies once per prediction
-        self.R_used = R
         return info
 
 

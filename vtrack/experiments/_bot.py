@@ -1,9 +1,11 @@
 """Seed 000 bearings-only tracking (BOT) scenario shared by the `bearings-*` and `ankf`
 experiments: constants, truth generators, measurements, a Monte Carlo driver and metrics.
 
-Every filter comes from the shared core (`make_filter`). The EKF may run all Monte Carlo runs
-at once: that path is the core EKF step written with batch axes (kalman.kf_predict,
-models.residual/h/H, kalman.kf_update), and a test checks it against the per-run core EKF.
+Every filter comes from the shared core (`make_filter`). The EKF, ANKF1 and ANKF2 may run all
+Monte Carlo runs at once: those paths are the core steps with a leading run axis
+(kalman.kf_predict, models.residual/h/H, kalman.kf_update, adaptive.ankf1_update/ankf2_update,
+with the options validated by building the core filter), and tests check them against the
+per-run core filters. The UKF and CKF always run as per-run core filter objects.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vtrack.estimation.adaptive import InnovationWindow, ankf1_update, ankf2_update
 from vtrack.estimation.bounds import chi2_band, nees, pcrlb_linear
 from vtrack.estimation.filters import make_filter
 from vtrack.estimation.kalman import kf_predict, kf_update
@@ -177,40 +180,102 @@ class FilterRun:
     series: dict[str, np.ndarray] = field(default_factory=dict)
 
 
-def batched_ekf(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
-                P0: np.ndarray) -> FilterRun:
-    """The core EKF over all runs at once: kf_predict, then nu = residual(z, h(x-)) and
-    kf_update with H(x-), every array carrying a leading run axis (seed 000 eqs. 7-9)."""
+def _batch_start(kind: str, motion: WienerVelocity, meas: Bearings, Z: np.ndarray,
+                 x0s: np.ndarray, P0: np.ndarray, options: dict[str, object]):
+    """The core filter built once (validates and defaults the options) and the batch arrays."""
+    template = make_filter(kind, motion, meas, x0s[0], P0, **options)
     runs, K, _ = Z.shape
     n = len(x0s[0])
     x = np.array(x0s, dtype=float)
     P = np.broadcast_to(P0, (runs, n, n)).copy()
+    return template, x, P, np.empty((runs, K, n)), np.empty((runs, K, n, n))
+
+
+def _batch_innovation(meas: Bearings, z: np.ndarray, x: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """nu = residual(z, h(x-)) and H(x-) for every run (the core models' own functions)."""
+    return meas.residual(z, meas.h(x)), np.stack([meas.H(xi) for xi in x])
+
+
+def batched_ekf(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
+                P0: np.ndarray, **options: object) -> FilterRun:
+    """The core EKF over all runs at once: kf_predict, then nu = residual(z, h(x-)) and
+    kf_update with H(x-), every array carrying a leading run axis (seed 000 eqs. 7-9)."""
+    _, x, P, X, PP = _batch_start("ekf", motion, meas, Z, x0s, P0, options)
     F, Q = motion.F(x[0], DT), motion.Q(DT)
-    X, PP = np.empty((runs, K, n)), np.empty((runs, K, n, n))
-    for k in range(K):
+    for k in range(Z.shape[1]):
         x, P = kf_predict(x, P, F, Q, fx=motion.f(x, DT))
-        nu = meas.residual(Z[:, k], meas.h(x))
-        H = np.stack([meas.H(xi) for xi in x])
+        nu, H = _batch_innovation(meas, Z[:, k], x)
         x, P, _ = kf_update(x, P, nu, H, meas.R)
         X[:, k], PP[:, k] = x, P
-    return FilterRun("ekf", X, PP, np.zeros(runs, dtype=bool))
+    return FilterRun("ekf", X, PP, np.zeros(len(Z), dtype=bool))
 
 
+def batched_ankf1(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
+                  P0: np.ndarray, **options: object) -> FilterRun:
+    """ANKF1 over all runs at once: the prediction of InnovationAdaptiveEKF.predict and the
+    core's adaptive.ankf1_update (what the class calls for a full measurement vector) with a
+    leading run axis. Needs every measurement present."""
+    f, x, P, X, PP = _batch_start("ankf1", motion, meas, Z, x0s, P0, options)
+    runs, K, m = Z.shape
+    F, Q = motion.F(x[0], DT), motion.Q(DT)
+    window = InnovationWindow(f.window.size, (runs, m))
+    R_hat = Q_hat = None
+    r_used = np.empty((runs, K, m))
+    for k in range(K):
+        x, P = kf_predict(x, P, F, Q if Q_hat is None else Q_hat, fx=motion.f(x, DT))
+        nu, H = _batch_innovation(meas, Z[:, k], x)
+        x, P, _, R, R_hat, Q_new = ankf1_update(x, P, nu, H, meas.R, window, f.r_floor,
+                                                f.adapt_r, f.adapt_q, R_hat)
+        if Q_new is not None:
+            Q_hat = Q_new
+        X[:, k], PP[:, k] = x, P
+        r_used[:, k] = np.diagonal(R, axis1=-2, axis2=-1)
+    return FilterRun("ankf1", X, PP, np.zeros(runs, dtype=bool), {"R_used": r_used})
+
+
+def batched_ankf2(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
+                  P0: np.ndarray, **options: object) -> FilterRun:
+    """ANKF2 over all runs at once: the prediction of FadingAdaptiveEKF.predict (Pprop kept
+    apart from Q) and the core's adaptive.ankf2_update with a leading run axis. Needs every
+    measurement present."""
+    f, x, P, X, PP = _batch_start("ankf2", motion, meas, Z, x0s, P0, options)
+    runs, K, m = Z.shape
+    F, Q = motion.F(x[0], DT), motion.Q(DT)
+    window = InnovationWindow(f.window.size, (runs, m))
+    lambda_R = None
+    r_used, lam_p = np.empty((runs, K, m)), np.empty((runs, K))
+    for k in range(K):
+        x, Pprop = kf_predict(x, P, F, np.zeros_like(Q), fx=motion.f(x, DT))
+        nu, H = _batch_innovation(meas, Z[:, k], x)
+        x, P, _, R, lam, lambda_R = ankf2_update(
+            x, Pprop, Q, nu, H, meas.R, window, f.lambda_max, f.ratio_min, f.ratio_max,
+            f.multiple_factors, f.fade_prior, lambda_R)
+        X[:, k], PP[:, k] = x, P
+        r_used[:, k] = np.diagonal(R, axis1=-2, axis2=-1)
+        lam_p[:, k] = lam
+    return FilterRun("ankf2", X, PP, np.zeros(runs, dtype=bool),
+                     {"R_used": r_used, "lambda_P": lam_p})
+
+
+_BATCHED = {"ekf": batched_ekf, "ankf1": batched_ankf1, "ankf2": batched_ankf2}
 _DIAGNOSTICS = {"ankf1": ("R_used",), "ankf2": ("R_used", "lambda_P")}
 
 
 def run_filter(kind: str, motion: WienerVelocity, meas: Bearings, Z: np.ndarray,
                x0s: np.ndarray, P0: np.ndarray, batch: bool = True, **options: object
                ) -> FilterRun:
-    """Run filter `kind` (core make_filter) over every run; the EKF without options runs
-    batched unless batch=False (identical numbers, see batched_ekf)."""
-    if kind == "ekf" and batch and not options:
+    """Run filter `kind` (core make_filter) over every run. The EKF, ANKF1 and ANKF2 run all
+    runs at once unless batch=False (the same core functions with a run axis; tests check the
+    numbers against the per-run filters); if a batched run fails, all runs are redone one by
+    one so that only the failing run is marked."""
+    if batch and kind in _BATCHED and np.all(np.isfinite(Z)):
         try:
-            out = batched_ekf(motion, meas, Z, x0s, P0)
-            if np.all(np.isfinite(out.x)):
+            out = _BATCHED[kind](motion, meas, Z, x0s, P0, **options)
+            if np.all(np.isfinite(out.x)) and np.all(np.isfinite(out.P)):
                 return out
         except (EstimationError, np.linalg.LinAlgError):
-            pass   # one bad run stops the batch: redo run by run so only that run fails
+            pass
     runs, K, _ = Z.shape
     n = len(x0s[0])
     X = np.full((runs, K, n), np.nan)
@@ -233,8 +298,7 @@ def run_filter(kind: str, motion: WienerVelocity, meas: Bearings, Z: np.ndarray,
             X[r], PP[r] = np.nan, np.nan
         for name in diag_names:
             vals = run_series[name]
-            shape = np.shape(vals[0]) if vals else ()
-            arr = np.full((K,) + shape, np.nan)
+            arr = np.full((K, meas.m) if name == "R_used" else (K,), np.nan)
             if vals:
                 arr[: len(vals)] = vals
             series[name].append(arr)
@@ -299,7 +363,10 @@ def summarize(run: FilterRun, truth: np.ndarray, bound_var: np.ndarray | None,
     rmse: root of the mean over runs and steps of the squared position error (finite runs);
     rmse_mean_of_runs: mean of the per-run RMSEs (the toolbox's table value), with its standard
     error rmse_mean_of_runs_se; median of the per-run RMSEs; diverged: runs that failed or whose
-    RMSE exceeds 10x the median; pcrlb_rmse: sqrt(mean_k bound_k) and rmse_over_pcrlb; anees:
+    RMSE exceeds 10x the median (then also rmse_without_diverged); pcrlb_rmse:
+    sqrt(mean_k bound_k), rmse_over_pcrlb and rmse_over_pcrlb_min_step, the smallest ratio of
+    the per-step RMSE over runs to the per-step bound (SEEDS 7.2: below 1 beyond Monte Carlo
+    error means a bug or an invalid comparison); anees:
     NEES averaged over runs and steps; nees_steps_in_band: fraction of steps whose run-averaged
     NEES lies in the two-sided 95% chi2 band."""
     se = squared_position_error(run, truth)
@@ -315,9 +382,16 @@ def summarize(run: FilterRun, truth: np.ndarray, bound_var: np.ndarray | None,
         "diverged": int(np.sum(~ok) + np.sum(rr > 10.0 * median)),
         "failed": int(np.sum(~ok)),
     }
+    keep = ok.copy()
+    keep[ok] = rr <= 10.0 * median
+    if out["diverged"] and keep.any():
+        out["rmse_without_diverged"] = float(np.sqrt(np.mean(se[keep])))
     if bound_var is not None:
         out["pcrlb_rmse"] = float(np.sqrt(np.mean(bound_var)))
         out["rmse_over_pcrlb"] = out["rmse"] / out["pcrlb_rmse"]
+        if ok.any():
+            step_rmse = np.sqrt(np.mean(se[ok], axis=0))
+            out["rmse_over_pcrlb_min_step"] = float(np.min(step_rmse / np.sqrt(bound_var)))
     ne = nees_series(run, truth)[ok]
     ne = ne[np.all(np.isfinite(ne), axis=1)]
     if len(ne):
@@ -368,9 +442,10 @@ def json_clean(obj: object) -> object:
 class Scenario:
     """One seed-000 set-up: geometry, truth generator and the filter's (maybe wrong) model.
 
-    truth "turn" is the toolbox's turning path from the fixed prior mean M0; "wiener" is the
-    model-matched truth (Wiener velocity with q_true) with a randomised prior mean per run.
-    sigma_true may vary per step (K,)."""
+    truth "turn" is the toolbox's turning path (the filter starts at the fixed prior mean M0);
+    "wiener" is the model-matched truth (Wiener velocity with q_true) with a randomised prior
+    mean per run. q_true and sigma_true (a number or one value per step) also define the PCRLB;
+    q_filter and sigma_filter are what the filters assume."""
 
     sensors: np.ndarray
     truth: str = "turn"
@@ -432,8 +507,7 @@ def simulate(scenario: Scenario, seeds: list[int],
     else:
         raise ValueError(f"unknown truth {scenario.truth!r}")
     Z = measure(truth, scenario.sensors, scenario.sigma_true, seeds)
-    q_bound = scenario.q_true
-    bound_var = pcrlb_variance(truth, scenario.sensors, scenario.sigma_true, q_bound)
+    bound_var = pcrlb_variance(truth, scenario.sensors, scenario.sigma_true, scenario.q_true)
     motion = CachedWienerVelocity(scenario.q_filter)
     meas = Bearings(scenario.sensors, scenario.sigma_filter)
     runs = {kind: run_filter(kind, motion, meas, Z, x0s, P0, **opts)

@@ -66,6 +66,7 @@ def save_plot(result: ExperimentResult, name: str, path: str) -> None:
     ix, iy = ex.position
     kinds = list(ex.estimates)
     colors = {k: f"C{i}" for i, k in enumerate(kinds)}
+    styles = {k: ("-", "--", ":", "-.")[i % 4] for i, k in enumerate(kinds)}  # overlaps show
 
     panels = ["xy", "err"]
     if nees_avg or ex.nees:
@@ -81,8 +82,8 @@ def save_plot(result: ExperimentResult, name: str, path: str) -> None:
     ax = flat[0]
     ax.plot(ex.truth[:, ix], ex.truth[:, iy], "k-", lw=2.0, label="truth")
     for k in kinds:
-        ax.plot(ex.estimates[k][:, ix], ex.estimates[k][:, iy], "-", color=colors[k], lw=1.0,
-                label=k)
+        ax.plot(ex.estimates[k][:, ix], ex.estimates[k][:, iy], styles[k], color=colors[k],
+                lw=1.2, label=k)
     if ex.sensors is not None and len(ex.sensors):
         s = np.asarray(ex.sensors)
         ax.plot(s[:, 0], s[:, 1], "k^", ms=9, label="sensors")
@@ -98,7 +99,8 @@ def save_plot(result: ExperimentResult, name: str, path: str) -> None:
         ax.plot(t, np.hypot(d[:, 0], d[:, 1]), "-", color=colors[k], lw=0.6, alpha=0.5,
                 label=f"{k} (example run)")
         if k in rmse:
-            ax.plot(t, rmse[k], "-", color=colors[k], lw=2.0, label=f"{k} RMSE over runs")
+            ax.plot(t, rmse[k], styles[k], color=colors[k], lw=2.0,
+                    label=f"{k} RMSE over runs")
     if bound is not None:
         ax.plot(t, bound, "k--", lw=1.5, label="PCRLB")
     ax.set_xlabel("time")
@@ -118,7 +120,7 @@ def save_plot(result: ExperimentResult, name: str, path: str) -> None:
             lo, hi = stats.chi2.ppf([0.025, 0.975], n)
             label = "NEES (example run)"
         for k, v in series.items():
-            ax.plot(t[: len(v)], v, "-", color=colors.get(k), lw=1.0, label=k)
+            ax.plot(t[: len(v)], v, styles.get(k, "-"), color=colors.get(k), lw=1.2, label=k)
         ax.axhspan(lo, hi, color="0.8", alpha=0.6, label="95% chi2 band")
         ax.axhline(n, color="k", lw=0.8, ls=":")
         ax.set_yscale("log")
