@@ -270,17 +270,27 @@ def _fuzzy_q(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np
              **opts: float) -> FuzzyAdaptiveKF:
     """fuzzy-q: Q adapted multiplicatively (Q_{k+1} = Q_k AdjQ, AdjQ in [1 - eta, 1 + eta],
     eta = step = 0.05), R fixed; same options as fuzzy-r (floor/ceiling on the Q scale)."""
-    return FuzzyAdaptiveKF(motion, meas, x0, P0, "Q", **_fuzzy_opts(opts))
+    return FuzzyAdaptiveKF(motion, meas, x0, P0, "Q", **_fuzzy_opts(opts, "fuzzy-q"))
 
 
-def _fuzzy_opts(opts: Mapping[str, float]) -> dict[str, float]:
-    out = dict(opts)
+def _number(kind: str, key: str, value: object) -> float:
+    """A finite numeric option (TOML may hand over strings or booleans)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+        raise ValueError(f"filter kind {kind!r}: option {key} must be a number, got {value!r}")
+    v = float(value)
+    if not np.isfinite(v):
+        raise ValueError(f"filter kind {kind!r}: option {key} must be finite, got {v}")
+    return v
+
+
+def _fuzzy_opts(opts: Mapping[str, object], kind: str = "fuzzy-r") -> dict[str, float]:
+    out: dict[str, float] = {k: _number(kind, k, v) for k, v in opts.items()}
     for key in ("window", "rules"):
         if key in out:
-            v = float(out[key])
-            if v != int(v):
-                raise ValueError(f"fuzzy option {key} must be an integer, got {v}")
-            out[key] = int(v)
+            if out[key] != int(out[key]):
+                raise ValueError(f"filter kind {kind!r}: option {key} must be an integer, "
+                                 f"got {out[key]}")
+            out[key] = int(out[key])
     return out
 
 
@@ -372,7 +382,8 @@ class SIIMExtendedKalmanFilter(ExtendedKalmanFilter):
 def _siim_ekf(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray,
               **opts: float) -> SIIMExtendedKalmanFilter:
     """siim-ekf: option gamma (the paper's M; default 1e-4, seed 004 scenario 2)."""
-    return SIIMExtendedKalmanFilter(motion, meas, x0, P0, **opts)
+    return SIIMExtendedKalmanFilter(motion, meas, x0, P0,
+                                    **{k: _number("siim-ekf", k, v) for k, v in opts.items()})
 
 
 __all__: Sequence[str] = (

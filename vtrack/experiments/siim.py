@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from vtrack.estimation.bounds import nees, pcrlb_linear
+from vtrack.estimation.bounds import chi2_band, nees, pcrlb_linear
 from vtrack.estimation.filters import GaussianFilter, make_filter
 from vtrack.estimation.models import Bearings, MeasurementModel, MotionModel, Ranges
 from vtrack.experiments import ExampleRun, ExperimentResult, register
@@ -188,7 +188,7 @@ def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int
         X, z = simulate1(sc, truth_rng)
         truths[r] = X[1:]
         x0 = filt_rng.multivariate_normal(np.array(sc.X0), P0)
-        ests, covs = {}, {}
+        ests, covs, nees_ex = {}, {}, {}
         for g in res:
             kind = "ekf" if g == "ekf" else "siim-ekf"
             f = _filter(kind, motion, meas, x0, P0, None if g == "ekf" else g)
@@ -198,11 +198,11 @@ def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int
             res[g]["nees"].append(nees(e, Ps))
             res[g]["nis"].append(nis)
             res[g]["rs"].append(rs)
-            ests[kind if g in ("ekf", sc.M) else f"siim-ekf(gamma={g:g})"] = xs
-            covs[kind if g in ("ekf", sc.M) else f"siim-ekf(gamma={g:g})"] = Ps
+            if g in ("ekf", sc.M):
+                ests[kind], covs[kind], nees_ex[kind] = xs, Ps, res[g]["nees"][-1]
         if keep_example and r == 0:
             example = ExampleRun(times=np.arange(1, sc.samples, dtype=float), truth=X[1:],
-                                 estimates=ests, covariances=covs,
+                                 estimates=ests, covariances=covs, nees=nees_ex,
                                  sensors=np.array([sc.station]), measurements=z[1:, None],
                                  extra_series={"siim-ekf:R_scale": np.array(res[sc.M]["rs"][0])
                                                } if sc.M in res else {})
@@ -214,6 +214,15 @@ def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int
         info[k] = Rinv * np.einsum("rmi,rmj->ij", Hs, Hs) / runs
     bound = pcrlb_linear(motion.F(None, 1.0), motion.Q(1.0), P0, info)
     bound_pos = bound[:, 0, 0] + bound[:, 1, 1]                           # MSE bound per step
+    if example is not None:  # Monte Carlo per-step curves and the bound for the plot
+        example.extra_series["pcrlb"] = np.sqrt(bound_pos)
+        for g in ("ekf", sc.M):
+            if g in res:
+                kind = "ekf" if g == "ekf" else "siim-ekf"
+                e = np.array(res[g]["e"])
+                example.extra_series[f"rmse/{kind}"] = np.sqrt(
+                    (e[..., :2] ** 2).sum(axis=-1).mean(axis=0))
+                example.extra_series[f"nees/{kind}"] = np.mean(res[g]["nees"], axis=0)
     checkpoints = [5, 10, 20, 30, 39]
     entries = {}
     for g, acc in res.items():
@@ -302,7 +311,7 @@ DESCRIPTION = (
 
 
 @register("siim", "seed 004: EKF vs SIIM fuzzy EKF (bearing and range radar), with PCRLB",
-          default_runs=1000)
+          default_runs=500)
 def run(runs: int, seed: int) -> ExperimentResult:
     s1 = Scenario1()
     ekf1, siim1, example = run_scenario1(s1, (s1.M,) + GAMMA_SWEEP, runs, seed,
@@ -350,5 +359,6 @@ def run(runs: int, seed: int) -> ExperimentResult:
         "config": {**s1.describe(), "gamma": s1.M},
         "results": results,
         "cases": cases,
+        "nees_band": list(chi2_band(4, runs)),
     }
     return ExperimentResult(summary=summary, example=example)
