@@ -8,12 +8,11 @@ Error state (estimate minus truth for navigation, residual sensor error for bias
     dx = [dr (3), dv (3), eps (3) | dba (3), dbg (3) | dbm (3)]
 
 9 states = the paper's; 15 = + accelerometer and gyro biases; 18 = + magnetometer bias
-(body frame, uT; it only matters when the magnetometer aids the filter).
-
-with the paper's attitude-error sign (Titterton & Weston's psi-angle form, which is what the
-signs of A and B in eqs. 28-30 imply):  R~ = (I - [eps x]) R,  so the truth is
-R = exp([eps x]) R~;  dba = b_a - b^_a, dbg = b_g - b^_g, dbm = b_m - b^_m (what the bias-corrected
-sensor still gets wrong).  Every function takes leading batch axes (Monte Carlo runs).
+(body frame, uT; it only matters when the magnetometer aids the filter).  The attitude
+error has the paper's sign (Titterton & Weston's psi-angle form, which is what the signs of
+A and B in eqs. 28-30 imply):  R~ = (I - [eps x]) R,  so the truth is R = exp([eps x]) R~.
+dba = b_a - b^_a, dbg = b_g - b^_g, dbm = b_m - b^_m: what the bias-corrected sensor still
+gets wrong.  Every function takes leading batch axes (Monte Carlo runs).
 """
 
 from __future__ import annotations
@@ -22,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.estimation.so3 import dcm_to_euler, euler_rate_matrix, exp_so3, skew
+from vtrack.estimation.so3 import dcm_to_euler, euler_rate_matrix, exp_so3, log_so3, skew
 
 G0 = 9.80665
 GRAVITY_N = np.array([0.0, 0.0, -G0])       # g^n of eq. 27 (ENU, z up)
@@ -45,13 +44,6 @@ class NavState:
                         self.bg.copy(), self.bm.copy())
 
 
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b over the last axis (np.cross without its axis juggling; hot loop)."""
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
-
-
 # ---------------------------------------------------------------------------- mechanisation
 
 def mechanize(p: np.ndarray, v: np.ndarray, R: np.ndarray, s_b: np.ndarray, w_ib: np.ndarray,
@@ -66,10 +58,10 @@ def mechanize(p: np.ndarray, v: np.ndarray, R: np.ndarray, s_b: np.ndarray, w_ib
         R_k = R_{k-1} expm((Omega_ib^b - Omega_in^b) dT),  omega_in^b = R_{k-1}' omega_ie^n
 
     s_b, w_ib are the (bias-corrected) accelerometer and gyro samples at t_{k-1}."""
-    s_n = np.einsum("...ij,...j->...i", R, s_b)
-    v_new = v + dt * (s_n + GRAVITY_N - 2.0 * cross(omega_ie, v))
+    s_n = (R @ s_b[..., None])[..., 0]
+    v_new = v + dt * (s_n + GRAVITY_N - v @ (2.0 * skew(omega_ie)).T)     # 2 omega_ie x v
     p_new = p + dt * (0.5 * (v + v_new) if trapezoid else v)
-    w_in_b = np.einsum("...ji,j->...i", R, omega_ie)
+    w_in_b = omega_ie @ R                                                  # R' omega_ie
     R_new = R @ exp_so3((w_ib - w_in_b) * dt)
     return p_new, v_new, R_new
 
@@ -221,6 +213,4 @@ def correct(nav: NavState, dx: np.ndarray) -> NavState:
 def attitude_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
     """eps with R_est = exp(-[eps x]) R_true, i.e. eps = log(R_true R_est')  (the paper's
     sign; used for NEES and the attitude RMSE)."""
-    from vtrack.estimation.so3 import log_so3
-
     return log_so3(R_true @ np.swapaxes(R_est, -1, -2))

@@ -26,15 +26,16 @@ measured angles.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from vtrack.estimation.ins import (
-    GRAVITY_N, NavState, attitude_jacobian, correct, heading_from_mag, heading_jacobian,
-    mechanize, process_noise, tilt_from_accel, tilt_jacobian, wrap)
+    GRAVITY_N, NavState, attitude_jacobian, correct, error_dynamics, heading_from_mag,
+    heading_jacobian, mechanize, process_noise, tilt_from_accel, tilt_jacobian, transition,
+    wrap)
 from vtrack.estimation.kalman import kf_predict, kf_update
-from vtrack.estimation.so3 import dcm_to_euler, skew
+from vtrack.estimation.so3 import dcm_to_euler
 
 DEG = np.pi / 180.0
 Recorder = Callable[[int, NavState, np.ndarray], None]
@@ -99,10 +100,12 @@ class FilterStats:
 
 
 def _attitude_rows(cfg: InsFilterConfig, nav: NavState, s_mean: np.ndarray, m_b: np.ndarray,
-                   aiding: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                   aiding: np.ndarray, paper: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The [roll, pitch, yaw] rows of eq. 35: innovation z = rpy~ - rpy_MEAS (B, 3), its
     Jacobian H = dz/d(dx) (B, 3, n), the heading noise variance (B,) and the row mask (B, 3).
-    s_mean and m_b are already bias-corrected with the current estimates."""
+    s_mean and m_b are already bias-corrected with the current estimates; `paper` (B,) marks
+    the elements that use eqs. 36-37 literally, the others use cfg.attitude_mode."""
     n = cfg.n_states
     B = s_mean.shape[0]
     rpy = dcm_to_euler(nav.R)
@@ -112,21 +115,22 @@ def _attitude_rows(cfg: InsFilterConfig, nav: NavState, s_mean: np.ndarray, m_b:
     mask[:, 2] = aiding
     H = np.zeros((B, 3, n))
     H[:, :, 6:9] = J
-    if cfg.attitude_mode == "paper":
-        mask[:, 0:2] = aiding[:, None]
-        yaw_m = heading_from_mag(m_b, roll_a, pitch_a, cfg.declination)
-        d_m = heading_jacobian(m_b, roll_a, pitch_a)[0]
+    if cfg.attitude_mode == "gated":
+        a_kin = np.einsum("bij,bj->bi", nav.R, s_mean) + GRAVITY_N
+        still = np.linalg.norm(a_kin, axis=-1) < cfg.quasi_static_accel
+        mask[:, 0:2] = (aiding & (still | paper))[:, None]
+    elif cfg.attitude_mode == "heading":
+        mask[:, 0:2] = (aiding & paper)[:, None]
     else:
-        if cfg.attitude_mode == "gated":
-            a_kin = np.einsum("bij,bj->bi", nav.R, s_mean) + GRAVITY_N
-            still = np.linalg.norm(a_kin, axis=-1) < cfg.quasi_static_accel
-            mask[:, 0:2] = (aiding & still)[:, None]
-        elif cfg.attitude_mode != "heading":
-            raise ValueError(f"unknown attitude_mode {cfg.attitude_mode!r}")
-        # heading compensated with the INS tilt: its tilt error leaks into the measurement
-        yaw_m = heading_from_mag(m_b, rpy[:, 0], rpy[:, 1], cfg.declination)
-        d_m, d_roll, d_pitch = heading_jacobian(m_b, rpy[:, 0], rpy[:, 1])
-        H[:, 2, 6:9] = J[:, 2] - d_roll[:, None] * J[:, 0] - d_pitch[:, None] * J[:, 1]
+        raise ValueError(f"unknown attitude_mode {cfg.attitude_mode!r}")
+    # heading compensated with the INS tilt (whose error leaks into the measurement), or
+    # with the accelerometer tilt (eq. 37 literally, `paper`)
+    roll_c = np.where(paper, roll_a, rpy[:, 0])
+    pitch_c = np.where(paper, pitch_a, rpy[:, 1])
+    yaw_m = heading_from_mag(m_b, roll_c, pitch_c, cfg.declination)
+    d_m, d_roll, d_pitch = heading_jacobian(m_b, roll_c, pitch_c)
+    leak = (~paper)[:, None]
+    H[:, 2, 6:9] = J[:, 2] - leak * (d_roll[:, None] * J[:, 0] + d_pitch[:, None] * J[:, 1])
     if n >= 15:      # the residual accelerometer bias moves the accelerometer tilt
         H[:, 0:2, 9:12] = -tilt_jacobian(s_mean)
     if n == 18:      # ... and the residual magnetometer bias the heading
@@ -138,31 +142,20 @@ def _attitude_rows(cfg: InsFilterConfig, nav: NavState, s_mean: np.ndarray, m_b:
     return wrap(nu), H, var_yaw, mask
 
 
-def _transition_template(cfg: InsFilterConfig, B: int) -> np.ndarray:
-    """The constant part of Phi = I + A dT (eq. 32): A_pv = I, A_vv = -2 (omega_ie x),
-    A_ee = -(omega_in x) with omega_in = omega_ie (SEEDS 3.2 local-level)."""
-    n, dt = cfg.n_states, cfg.dt
-    w = np.asarray(cfg.omega_ie, dtype=float)
-    F = np.eye(n)
-    F[0:3, 3:6] += np.eye(3) * dt
-    if cfg.coriolis:
-        F[3:6, 3:6] += -2.0 * skew(w) * dt
-    F[6:9, 6:9] += -skew(w) * dt
-    return np.broadcast_to(F, (B, n, n)).copy()
-
-
 def run_ins_filter(cfg: InsFilterConfig, nav0: NavState, P0: np.ndarray, accel: np.ndarray,
                    gyro: np.ndarray, mag: np.ndarray, gps_index: np.ndarray,
                    gps_pos: np.ndarray, gps_vel: np.ndarray, gps_valid: np.ndarray,
                    mag_aiding: np.ndarray, recorder: Recorder | None = None,
-                   every: int = 8) -> tuple[NavState, np.ndarray, FilterStats]:
+                   every: int = 8, paper_attitude: np.ndarray | None = None
+                   ) -> tuple[NavState, np.ndarray, FilterStats]:
     """Run the closed-loop filter over a batch of B runs.
 
     accel, gyro, mag: (B, K, 3) raw IMU samples at epochs 0..K-1; gps_index (J,) the IMU
     epochs of the 5 Hz update instants, gps_pos/gps_vel (B, J, 3), gps_valid (B, J) or (J,);
-    mag_aiding (B,) switches the attitude rows per batch element.  nav0 and P0 (B, n, n)
-    describe the estimate at epoch 0.  recorder(k, nav, P) is called at every epoch
-    k = 0..K-1 (after the update at update epochs)."""
+    mag_aiding (B,) switches the attitude rows per batch element; paper_attitude (B,) makes
+    an element use eqs. 36-37 literally (default: cfg.attitude_mode == "paper").  nav0 and
+    P0 (B, n, n) describe the estimate at epoch 0.  recorder(k, nav, P) is called at every
+    epoch k = 0..K-1 (after the update at update epochs)."""
     n, dt = cfg.n_states, cfg.dt
     if n not in (9, 15, 18):
         raise ValueError("n_states must be 9, 15 or 18")
@@ -170,11 +163,14 @@ def run_ins_filter(cfg: InsFilterConfig, nav0: NavState, P0: np.ndarray, accel: 
     omega_ie = np.asarray(cfg.omega_ie, dtype=float)
     valid = np.broadcast_to(np.asarray(gps_valid, dtype=bool), (B, len(gps_index)))
     aiding = np.broadcast_to(np.asarray(mag_aiding, dtype=bool), (B,))
+    paper = np.broadcast_to(np.asarray(cfg.attitude_mode == "paper" if paper_attitude is None
+                                       else paper_attitude, dtype=bool), (B,))
+    if cfg.attitude_mode == "paper":
+        cfg = replace(cfg, attitude_mode="gated")       # every element is `paper` anyway
     nav, P = nav0.copy(), np.array(P0, dtype=float)
     x = np.zeros((B, n))
     # Q (eq. 33) is constant for isotropic noise densities (R R' = I).
     Q = process_noise(np.eye(3), n, dt, *cfg.psd())
-    F0 = _transition_template(cfg, B)
     R_gps = np.square([cfg.sigma_gps_pos] * 3 + [cfg.sigma_gps_vel] * 3)
     H = np.zeros((B, 9, n))
     H[:, 0:3, 0:3] = np.eye(3)
@@ -186,11 +182,8 @@ def run_ins_filter(cfg: InsFilterConfig, nav0: NavState, P0: np.ndarray, accel: 
     for k in range(K - 1):
         s_b = accel[:, k] - nav.ba
         w_b = gyro[:, k] - nav.bg
-        F = F0.copy()
-        F[:, 3:6, 6:9] = skew(np.einsum("bij,bj->bi", nav.R, s_b)) * dt     # (s^n x) dT
-        if n >= 15:
-            F[:, 3:6, 9:12] = nav.R * dt                                     # B: R_b^n
-            F[:, 6:9, 12:15] = -nav.R * dt                                   # B: -R_b^n
+        s_n = (nav.R @ s_b[:, :, None])[:, :, 0]
+        F = transition(error_dynamics(nav.R, s_n, omega_ie, n, cfg.coriolis), dt)  # eq. 32
         nav.p, nav.v, nav.R = mechanize(nav.p, nav.v, nav.R, s_b, w_b, dt, omega_ie,
                                         cfg.trapezoid)
         x, P = kf_predict(x, P, F, Q)
@@ -199,7 +192,7 @@ def run_ins_filter(cfg: InsFilterConfig, nav0: NavState, P0: np.ndarray, accel: 
             lo = max(0, k + 2 - every)
             s_mean = accel[:, lo:k + 2].mean(axis=1) - nav.ba
             nu_att, H_att, var_yaw, m_att = _attitude_rows(
-                cfg, nav, s_mean, mag[:, k + 1] - nav.bm, aiding)
+                cfg, nav, s_mean, mag[:, k + 1] - nav.bm, aiding, paper)
             mask = np.concatenate([np.repeat(valid[:, j, None], 6, axis=1), m_att], axis=1)
             if mask.any():
                 nu = np.concatenate([nav.p - gps_pos[:, j], nav.v - gps_vel[:, j], nu_att], 1)

@@ -33,19 +33,18 @@ def vee(S: np.ndarray) -> np.ndarray:
 
 
 def exp_so3(phi: np.ndarray) -> np.ndarray:
-    """expm(skew(phi)) by Rodrigues: I + sin(a)/a K + (1 - cos a)/a^2 K^2, a = |phi|
-    (the attitude update of eq. 27 with phi = (omega_ib^b - omega_in^b) dT)."""
+    """expm(skew(phi)) by Rodrigues: I + sin(a)/a K + (1 - cos a)/a^2 K^2, a = |phi|,
+    K^2 = phi phi' - a^2 I (the attitude update of eq. 27, phi = (omega_ib - omega_in) dT)."""
     phi = np.asarray(phi, dtype=float)
     a2 = np.einsum("...i,...i->...", phi, phi)
-    a = np.sqrt(a2)
-    small = a < 1e-4
-    a_safe = np.where(small, 1.0, a)
+    small = a2 < 1e-8
+    a2s = np.where(small, 1.0, a2)
+    a = np.sqrt(a2s)
     # Taylor series below 1e-4 rad keeps full double precision.
-    s = np.where(small, 1.0 - a2 / 6.0 + a2 * a2 / 120.0, np.sin(a_safe) / a_safe)
-    c = np.where(small, 0.5 - a2 / 24.0 + a2 * a2 / 720.0,
-                 (1.0 - np.cos(a_safe)) / np.where(small, 1.0, a2))
-    K = skew(phi)
-    return np.eye(3) + s[..., None, None] * K + c[..., None, None] * (K @ K)
+    s = np.where(small, 1.0 - a2 / 6.0, np.sin(a) / a)[..., None, None]
+    c = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(a)) / a2s)[..., None, None]
+    K2 = phi[..., :, None] * phi[..., None, :] - a2[..., None, None] * np.eye(3)
+    return np.eye(3) + s * skew(phi) + c * K2
 
 
 def log_so3(R: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.estimation.so3 import rot_x, rot_y, rot_z
+from vtrack.estimation.so3 import dcm_to_euler, log_so3, rot_x, rot_y, rot_z
 
 G0 = 9.80665                        # m/s^2, seed eq. 27
 GRAVITY_N = np.array([0.0, 0.0, -G0])
@@ -191,8 +191,7 @@ class Trajectory:
 
     @property
     def rpy(self) -> np.ndarray:
-        from vtrack.estimation.so3 import dcm_to_euler
-
+        """[roll, pitch, yaw] (K, 3)."""
         return dcm_to_euler(self.R)
 
 
@@ -234,8 +233,6 @@ def generate(m: Manoeuvres, duration: float, dt: float = 0.025, latitude_deg: fl
 
 def body_rates(m: Manoeuvres, t: np.ndarray, h: float = 1e-4) -> np.ndarray:
     """omega_nb^b(t) by a central difference of R: log(R(t-h)' R(t+h)) / 2h (error O(h^2))."""
-    from vtrack.estimation.so3 import log_so3
-
     _, _, Rm = _kinematics(m, t - h)
     _, _, Rp = _kinematics(m, t + h)
     return log_so3(np.swapaxes(Rm, -1, -2) @ Rp) / (2.0 * h)
