@@ -16,6 +16,7 @@ logged at their own frames) and is cleared on the frame after its last row.
 from __future__ import annotations
 
 import colorsys
+import re
 from pathlib import Path
 from typing import Any
 
@@ -189,10 +190,13 @@ def log_experiment(result: Any, name: str, path: str | Path) -> None:
     ex = result.example
     if ex is None:
         raise ValueError(f"experiment {name} has no example run to log")
+    spatial = (rrb.Spatial3DView(name="world", origin="/world") if ex.truth.shape[1] == 3
+               else rrb.Spatial2DView(name="plane", origin="/plane"))
     bp = rrb.Blueprint(rrb.Horizontal(
-        rrb.Spatial2DView(name="plane", origin="/plane"),
+        spatial,
         rrb.Vertical(rrb.TimeSeriesView(name="position error", origin="/error"),
-                     rrb.TimeSeriesView(name="NEES", origin="/nees"))))
+                     rrb.TimeSeriesView(name="NEES", origin="/nees"),
+                     rrb.TimeSeriesView(name="series", origin="/series"))))
     rec = _open(f"vtrack-experiment-{name}", path, bp)
     i, j = ex.position
     truth = np.asarray(ex.truth)[:, [i, j]]
@@ -227,10 +231,26 @@ def log_experiment(result: Any, name: str, path: str | Path) -> None:
                 rays = [[s, s + 10.0 * np.array([np.cos(b), np.sin(b)])]
                         for s, b in zip(ex.sensors, ex.measurements[t_idx])]
                 rec.log("plane/bearings", rr.LineStrips2D(rays, colors=(255, 200, 0), radii=0.005))
+    if ex.truth.shape[1] == 3:   # a 3-D trajectory (ins): paths, and fixes if given
+        rec.log("world/truth", rr.LineStrips3D([ex.truth], colors=(255, 255, 255)), static=True)
+        for k, (kind, est) in enumerate(ex.estimates.items()):
+            rec.log(f"world/{kind}", rr.LineStrips3D([np.asarray(est)[:, :3]],
+                                                     colors=[track_color(k + 1)]), static=True)
+        fixes = None if ex.measurements is None else np.asarray(ex.measurements, dtype=float)
+        if fixes is not None and fixes.ndim == 2 and fixes.shape[1] >= 3:
+            fixes = fixes[np.all(np.isfinite(fixes[:, :3]), axis=1), :3]
+            rec.log("world/fixes", rr.Points3D(fixes, radii=0.5, colors=(255, 200, 0)),
+                    static=True)
     for key, series in ex.extra_series.items():
+        key = re.sub(r"[^A-Za-z0-9_/.-]+", "_", key).strip("_")
         series = np.asarray(series, dtype=float)
-        if series.ndim == 1 and len(series) == len(ex.times):
+        if len(series) != len(ex.times):
+            continue
+        if series.ndim == 1:
             _log_series(rec, f"series/{key}", ex.times, series)
+        elif series.ndim == 2:
+            for c in range(series.shape[1]):
+                _log_series(rec, f"series/{key}/{c}", ex.times, series[:, c])
     rec.flush()
     rec.disconnect()
 
