@@ -16,17 +16,20 @@ def gated_pairs(pred: np.ndarray, S: np.ndarray, dets: np.ndarray, gate: float,
     """Candidate (track, detection) pairs with squared Mahalanobis distance d2 <= gate.
 
     pred (T, 2) predicted positions, S (T, 2, 2) their innovation covariances, dets (D, 2),
-    radius (T,) a Euclidean search radius that contains the gate ellipse.
+    radius (T,) a Euclidean search radius that contains the gate ellipse; each track's 8
+    nearest detections within the largest radius are the candidates.
     Returns track indices, detection indices and the cost d2 + ln det S of each pair.
     """
     if len(pred) == 0 or len(dets) == 0:
         e = np.empty(0, dtype=int)
         return e, e, np.empty(0)
-    tree = cKDTree(dets)
-    hits = tree.query_ball_point(pred, radius)
-    counts = np.fromiter((len(h) for h in hits), dtype=int, count=len(hits))
-    ti = np.repeat(np.arange(len(pred)), counts)
-    di = np.fromiter((j for h in hits for j in h), dtype=int, count=int(counts.sum()))
+    k = min(8, len(dets))  # a gate holds a few detections at most
+    _, idx = cKDTree(dets).query(pred, k=k, distance_upper_bound=float(radius.max()) + 1e-9)
+    idx = idx.reshape(len(pred), k)
+    ti = np.repeat(np.arange(len(pred)), k)
+    di = idx.ravel()
+    found = di < len(dets)
+    ti, di = ti[found], di[found]
     if len(ti) == 0:
         return ti, di, np.empty(0)
     diff = dets[di] - pred[ti]

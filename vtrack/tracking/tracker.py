@@ -262,7 +262,7 @@ class Tracker:
             position_only=cfg.measurement == "position")
         nu = z - self.x[mt]
         self._last_innov = np.hypot(nu[:, 0], nu[:, 1])
-        H = np.broadcast_to(np.eye(6), (len(mt), 6, 6))
+        H = np.tile(np.eye(6), (len(mt), 1, 1))
         self.x[mt], self.P[mt], _ = kf_update(self.x[mt], self.P[mt], nu, H, R, mask=mask)
         size = self.size[mt]
         grow = boxes[:, 2:] > size
@@ -374,17 +374,22 @@ class Tracker:
         return np.vstack(out) if out else np.zeros((0, 7))
 
 
-def points_in_boxes(points: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """All (box, point) index pairs with the point inside the box (x, y, w, h); a k-d tree over
-    the points keeps this near-linear for thousands of boxes."""
+def points_in_boxes(points: np.ndarray, boxes: np.ndarray, k: int = 8
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(box, point) index pairs with the point inside the box (x, y, w, h), considering each
+    box's k nearest points (a box holds a few vehicle centres at most); a k-d tree keeps this
+    near-linear for thousands of boxes."""
     if len(points) == 0 or len(boxes) == 0:
         e = np.empty(0, dtype=int)
         return e, e
     centre = boxes[:, :2] + boxes[:, 2:] / 2
-    hits = cKDTree(points).query_ball_point(centre, np.hypot(boxes[:, 2], boxes[:, 3]) / 2)
-    counts = np.fromiter((len(h) for h in hits), dtype=int, count=len(hits))
-    bi = np.repeat(np.arange(len(boxes)), counts)
-    pi = np.fromiter((j for h in hits for j in h), dtype=int, count=int(counts.sum()))
-    d = np.abs(points[pi] - centre[bi])
-    inside = np.all(d <= boxes[bi, 2:] / 2, axis=1)
+    k = min(k, len(points))
+    radius = float(np.hypot(boxes[:, 2], boxes[:, 3]).max()) / 2 + 1e-9
+    _, idx = cKDTree(points).query(centre, k=k, distance_upper_bound=radius)
+    idx = idx.reshape(len(boxes), k)
+    bi = np.repeat(np.arange(len(boxes)), k)
+    pi = idx.ravel()
+    found = pi < len(points)
+    bi, pi = bi[found], pi[found]
+    inside = np.all(np.abs(points[pi] - centre[bi]) <= boxes[bi, 2:] / 2, axis=1)
     return bi[inside], pi[inside]
