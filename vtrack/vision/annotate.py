@@ -1,0 +1,112 @@
+"""Frame annotation for --save-frames / --save-video, and atomic JPEG output.
+
+Confirmed tracks: solid box in the track's colour with its id; coasting tracks (no detection
+this frame, drawn at the prediction): thin dashed grey box tagged "coast"; trails in the
+track's colour; detections: small crosses; counting lines with their forward/backward
+counts; the frame number. Everything is plain OpenCV drawing on one copy of the frame.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import functools
+import os
+from collections.abc import Mapping, Sequence
+
+import cv2
+import numpy as np
+
+from vtrack.fileio import atomic_open
+from vtrack.vision.detect import Detections
+
+FONT = cv2.FONT_HERSHEY_SIMPLEX
+COAST_BGR = (170, 170, 170)
+DETECTION_BGR = (0, 255, 255)
+LINE_BGR = (255, 0, 255)
+TEXT_BGR = (255, 255, 255)
+
+
+@functools.lru_cache(maxsize=4096)
+def track_colour(track_id: int) -> tuple[int, int, int]:
+    """A stable, saturated BGR colour per id (golden-ratio steps around the hue circle)."""
+    r, g, b = colorsys.hsv_to_rgb((track_id * 0.618033988749895) % 1.0, 0.85, 1.0)
+    return int(255 * b), int(255 * g), int(255 * r)
+
+
+@functools.lru_cache(maxsize=64)
+def _style(width: int, height: int) -> tuple[float, int]:
+    """Font scale and line thickness for an image size (readable from 320x240 to 4K)."""
+    scale = min(width, height) / 720.0
+    return max(0.35, 0.5 * scale), max(1, round(2 * scale))
+
+
+def _label(img: np.ndarray, text: str, x: int, y: int, colour: tuple[int, int, int],
+           font: float, thick: int) -> None:
+    """Text on a filled box whose bottom-left corner is (x, y), kept inside the image."""
+    (tw, th), base = cv2.getTextSize(text, FONT, font, thick)
+    x = min(max(x, 0), max(img.shape[1] - tw - 2, 0))
+    y = min(max(y, th + base + 2), img.shape[0])
+    cv2.rectangle(img, (x, y - th - base - 2), (x + tw + 2, y), colour, cv2.FILLED)
+    cv2.putText(img, text, (x + 1, y - base), FONT, font, (0, 0, 0), thick, cv2.LINE_AA)
+
+
+def _dashed_rect(img: np.ndarray, x0: int, y0: int, x1: int, y1: int,
+                 colour: tuple[int, int, int], dash: int = 6) -> None:
+    corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+    for (ax, ay), (bx, by) in zip(corners, corners[1:]):
+        length = max(abs(bx - ax), abs(by - ay))
+        for s in range(0, length, 2 * dash):
+            e = min(s + dash, length)
+            t0, t1 = s / max(length, 1), e / max(length, 1)
+            cv2.line(img, (round(ax + (bx - ax) * t0), round(ay + (by - ay) * t0)),
+                     (round(ax + (bx - ax) * t1), round(ay + (by - ay) * t1)), colour, 1)
+
+
+def draw_frame(image: np.ndarray, *, ids: Sequence[int], boxes: np.ndarray | Sequence,
+               coasted: Sequence[bool],
+               trails: Mapping[int, Sequence[tuple[float, float]]],
+               detections: Detections | None,
+               lines: Sequence[tuple[float, float, float, float]],
+               counts: Sequence[tuple[int, int]], frame_index: int) -> np.ndarray:
+    """Annotated copy of `image` (HxWx3 BGR); `image` itself is not modified.
+
+    ids/boxes/coasted: one entry per track shown (boxes x, y, w, h in pixels); trails: past
+    box centres per id; lines and counts: one (x1, y1, x2, y2) and (forward, backward) each.
+    """
+    out = image.copy()
+    font, thick = _style(out.shape[1], out.shape[0])
+    for tid, pts in trails.items():
+        if len(pts) > 1:
+            poly = np.round(np.asarray(pts, dtype=np.float64)).astype(np.int32)
+            cv2.polylines(out, [poly], False, track_colour(int(tid)), thick, cv2.LINE_AA)
+    if detections is not None:
+        for cx, cy in np.round(detections.centers).astype(int):
+            cv2.drawMarker(out, (int(cx), int(cy)), DETECTION_BGR, cv2.MARKER_CROSS,
+                           6 + 2 * thick, 1)
+    for tid, box, coast in zip(ids, np.asarray(boxes, dtype=np.float64).reshape(-1, 4),
+                               coasted):
+        x0, y0 = round(box[0]), round(box[1])
+        x1, y1 = round(box[0] + box[2]), round(box[1] + box[3])
+        if coast:
+            _dashed_rect(out, x0, y0, x1, y1, COAST_BGR)
+            _label(out, f"{tid} coast", x0, y0, COAST_BGR, font, 1)
+        else:
+            colour = track_colour(int(tid))
+            cv2.rectangle(out, (x0, y0), (x1, y1), colour, thick)
+            _label(out, str(tid), x0, y0, colour, font, 1)
+    for (x1, y1, x2, y2), (fwd, bwd) in zip(lines, counts):
+        p, q = (round(x1), round(y1)), (round(x2), round(y2))
+        cv2.line(out, p, q, LINE_BGR, thick, cv2.LINE_AA)
+        _label(out, f"fwd {fwd}  bwd {bwd}", (p[0] + q[0]) // 2, (p[1] + q[1]) // 2 - 2,
+               LINE_BGR, font, 1)
+    _label(out, f"frame {frame_index}", 0, 0, TEXT_BGR, font, 1)
+    return out
+
+
+def save_jpeg(path: str | os.PathLike, image: np.ndarray, quality: int = 90) -> None:
+    """Encode `image` as JPEG and write it atomically (no half-written file on interrupt)."""
+    ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise ValueError(f"{path}: JPEG encoding failed")
+    with atomic_open(path, "wb") as fh:
+        fh.write(data.tobytes())
