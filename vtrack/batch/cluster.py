@@ -17,6 +17,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
+import threading
 import time
 import warnings
 from collections.abc import Callable
@@ -38,10 +40,67 @@ def require(engine: str) -> None:
         raise MissingExtraError("dask", "dask distributed")
 
 
+def check_reachable(address: str, timeout: float = 5.0) -> None:
+    """InputError unless HOST:PORT (optionally with a scheme) accepts a TCP connection.
+
+    Ray's own connect would otherwise retry for many minutes, logging to stderr.
+    """
+    import socket
+
+    text = address.strip()
+    if "://" in text:
+        text = text.split("://", 1)[1]
+    text = text.split("/", 1)[0]
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        return   # e.g. Ray's "auto": let the engine resolve it
+    try:
+        port_no = int(port)
+    except ValueError:
+        raise InputError(f"--address {address}: expected HOST:PORT") from None
+    try:
+        with socket.create_connection((host.strip("[]") or "127.0.0.1", port_no), timeout):
+            pass
+    except OSError as exc:
+        raise InputError(f"--address {address}: cannot reach the cluster "
+                         f"({exc.strerror or exc})") from None
+
+
 def _failed(task: VideoTask, exc: BaseException) -> dict:
     text = str(exc).strip().splitlines()
     detail = text[0] if text else ""
     return row(task, "failed", error=f"{task.video}: {type(exc).__name__}: {detail}")
+
+
+@contextlib.contextmanager
+def _children_ignore_sigint():
+    """Processes started inside inherit SIGINT ignored (a disposition survives exec).
+
+    A terminal's Ctrl-C reaches the whole process group; Dask worker processes would die of
+    it with tracebacks and take their running tasks along. Ignoring it, only the batch
+    process reacts and stops the tasks in order. A Ctrl-C while the cluster starts (a few
+    seconds) is therefore lost; the next one works.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def _keep_sigterm_handler():
+    """Put back the SIGTERM handler that was active before (vtrack's: KeyboardInterrupt)."""
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.getsignal(signal.SIGTERM) if main else None
+    try:
+        yield
+    finally:
+        if main and previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 @contextlib.contextmanager
@@ -51,7 +110,7 @@ def _quiet_logs(*names: str):
     for name in names:
         lg = logging.getLogger(name)
         saved[name] = lg.level
-        lg.setLevel(logging.ERROR)
+        lg.setLevel(logging.CRITICAL)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -70,20 +129,20 @@ def run_ray(tasks: list[VideoTask], workers: int, address: str | None,
         import ray
         import ray.exceptions
 
-        started = False
-        if not ray.is_initialized():
-            kw = dict(logging_level=logging.ERROR, log_to_driver=False)
-            try:
-                if address:
-                    ray.init(address=address, **kw)
-                else:
-                    ray.init(num_cpus=workers, include_dashboard=False, **kw)
-            except Exception as exc:  # noqa: BLE001 - any start/connect failure is the user's
-                where = f"--address {address}" if address else "local Ray cluster"
-                msg = " ".join(str(exc).split()) or type(exc).__name__
-                raise InputError(f"{where}: cannot start/connect Ray ({msg})") from None
-            started = True
+        started = not ray.is_initialized()   # else: a caller's session, left as it is
         try:
+            if started:
+                kw = dict(logging_level=logging.ERROR, log_to_driver=False)
+                try:
+                    with _keep_sigterm_handler():   # ray.init installs its own (exit 1)
+                        if address:
+                            ray.init(address=address, **kw)
+                        else:
+                            ray.init(num_cpus=workers, include_dashboard=False, **kw)
+                except Exception as exc:  # noqa: BLE001 - a start/connect failure
+                    where = f"--address {address}" if address else "local Ray cluster"
+                    msg = " ".join(str(exc).split()) or type(exc).__name__
+                    raise InputError(f"{where}: cannot start/connect Ray ({msg})") from None
             remote = ray.remote(num_cpus=1, max_retries=0)(process_video)
             refs = {remote.remote(t): t for t in tasks}
             pending = list(refs)
@@ -107,7 +166,7 @@ def run_ray(tasks: list[VideoTask], workers: int, address: str | None,
                 raise
         finally:
             if started:
-                with contextlib.suppress(Exception):
+                with contextlib.suppress(Exception), _keep_sigterm_handler():
                     ray.shutdown()
 
 
@@ -134,10 +193,11 @@ def run_dask(tasks: list[VideoTask], workers: int, address: str | None,
             if address:
                 client = Client(address, timeout="20s")
             else:
-                with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+                with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+                        _children_ignore_sigint():
                     cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                            processes=True, dashboard_address=None,
-                                           silence_logs=logging.ERROR)
+                                           silence_logs=logging.CRITICAL)
                 client = Client(cluster)
         except Exception as exc:  # noqa: BLE001
             if cluster is not None:

@@ -2,10 +2,10 @@
 
 Own pool rather than concurrent.futures, for control over interruption and crashes:
 - workers are started with "spawn" (no fork of a parent that may hold threads) and with
-  SIGINT/SIGTERM blocked until their handlers are installed; a worker's first SIGINT or
-  SIGTERM raises KeyboardInterrupt in it (so `track_video` flushes "complete": false), later
-  ones are ignored so that flush is not cut short; a batch whose SIGINT is ignored (started
-  with `&` from a script) passes that on;
+  SIGINT ignored (inherited through exec): a terminal's Ctrl-C reaches the parent, which
+  forwards SIGTERM; a worker's first SIGTERM raises KeyboardInterrupt in it (so
+  `track_video` flushes "complete": false), later ones are swallowed so that flush is not
+  cut short;
 - on Linux a worker gets SIGTERM when the batch process dies (PR_SET_PDEATHSIG), so even a
   killed parent leaves no worker running;
 - a worker that dies (a decoder crash, the OOM killer) fails only its video; a fresh worker
@@ -56,17 +56,15 @@ def _die_with_parent() -> None:
         libc.prctl(1, signal.SIGTERM, 0, 0, 0)   # PR_SET_PDEATHSIG
 
 
-def _worker_main(conn, parent_pid: int, ignore_sigint: bool) -> None:
-    """Loop: receive a VideoTask, send back its row; None or a signal ends the loop.
+def _worker_main(conn, parent_pid: int) -> None:
+    """Loop: receive a VideoTask, send back its row; None or SIGTERM ends the loop.
 
+    SIGINT is ignored (inherited from the start): the parent turns a Ctrl-C into SIGTERM.
     Exit code 0 after None, 130 after an interruption (the parent reports the video).
     """
     try:
-        for s in _SIGNALS:
-            ignore = s == signal.SIGINT and ignore_sigint   # e.g. a batch started with `&`
-            signal.signal(s, signal.SIG_IGN if ignore else _on_signal)
+        signal.signal(signal.SIGTERM, _on_signal)
         _die_with_parent()
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)
         if os.getppid() != parent_pid:
             return
         while True:
@@ -89,15 +87,10 @@ def _worker_main(conn, parent_pid: int, ignore_sigint: bool) -> None:
 class _Worker:
     def __init__(self, ctx: mp.context.BaseContext, slot: int) -> None:
         parent_conn, child_conn = ctx.Pipe()
-        ignore_sigint = signal.getsignal(signal.SIGINT) == signal.SIG_IGN
-        self.proc = ctx.Process(target=_worker_main,
-                                args=(child_conn, os.getpid(), ignore_sigint),
+        self.proc = ctx.Process(target=_worker_main, args=(child_conn, os.getpid()),
                                 name=f"vtrack-batch-{slot}", daemon=True)
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
-        try:
+        with _children_ignore_sigint():
             self.proc.start()
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
         child_conn.close()
         self.conn = parent_conn
         self.task: VideoTask | None = None
@@ -123,6 +116,21 @@ class _Worker:
     def close(self) -> None:
         with contextlib.suppress(Exception):
             self.conn.close()
+
+
+@contextlib.contextmanager
+def _children_ignore_sigint():
+    """SIGINT ignored while a worker is started: the disposition survives exec, so workers
+    never see a terminal's Ctrl-C (only the parent does; it forwards SIGTERM). The window
+    is the fork/exec only."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _died(task: VideoTask, proc: mp.process.BaseProcess) -> dict:
@@ -166,7 +174,9 @@ def run_local(tasks: list[VideoTask], workers: int,
                 if result is None:                 # crashed: fail its video, replace it
                     result = _died(w.task, w.proc)
                     w.close()
-                    pool[i] = _Worker(ctx, i)
+                    w.task = None
+                    if pending:
+                        pool[i] = _Worker(ctx, i)
                 else:
                     w.task = None
                 on_result(result)
@@ -189,34 +199,61 @@ def _interrupt(pool: list[_Worker], on_result: Callable[[dict], None]) -> None:
         for w in pool:
             w.signal(signal.SIGTERM)
         deadline = time.monotonic() + GRACE_S
-        live = [w for w in pool if w.proc.is_alive() or w.conn.poll()]
-        while live and not hurry.is_set() and time.monotonic() < deadline:
-            wait([w.conn for w in live] + [w.proc.sentinel for w in live], timeout=0.2)
-            for w in live:
-                if w.task is not None and w.conn.poll():
+
+        def drain() -> None:           # a video that finished meanwhile still counts
+            for w in pool:
+                if w.task is not None:
                     result = w.result()
-                    if result is not None and result["status"] in ("ok", "failed"):
-                        on_result(result)
-                    w.task = None
-            live = [w for w in live if w.proc.is_alive()]
+                    if result is not None:
+                        w.task = None
+                        if result["status"] in ("ok", "failed"):
+                            on_result(result)
+
+        while not hurry.is_set():
+            drain()
+            live = [w for w in pool if w.proc.is_alive()]
+            if not live or time.monotonic() >= deadline:
+                break
+            wait([w.proc.sentinel for w in live], timeout=0.1)
+        drain()
     finally:
         if main:
             for s, h in saved.items():
                 signal.signal(s, h)
 
 
+def resource_tracker_running() -> bool:
+    """Whether multiprocessing's resource-tracker process is running in this process."""
+    with contextlib.suppress(Exception):
+        from multiprocessing import resource_tracker
+
+        return getattr(resource_tracker._resource_tracker, "_fd", None) is not None
+    return True   # unknown: treat as someone else's
+
+
 def stop_resource_tracker() -> None:
-    """Stop (and reap) multiprocessing's resource-tracker process started for the pool.
+    """Stop (and reap) multiprocessing's resource-tracker process.
 
     It would exit by itself once the batch process is gone, but as an orphan; the command
-    line calls this at the end so nothing outlives `vtrack batch` even briefly.
+    line calls this at the end, only if the batch started the tracker (it waits until every
+    process that inherited the tracker's pipe has exited: ours have by then).
     """
     with contextlib.suppress(Exception):
         from multiprocessing import resource_tracker
 
-        stop = getattr(resource_tracker._resource_tracker, "_stop", None)
-        if stop is not None:
-            stop()
+        rt = resource_tracker._resource_tracker
+        with rt._lock:
+            fd, pid = rt._fd, rt._pid
+            if fd is None or pid is None:
+                return
+            rt._fd = rt._pid = None
+            os.close(fd)              # the tracker exits once no process holds its pipe
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            if os.waitpid(pid, os.WNOHANG)[0]:
+                return
+            time.sleep(0.01)
+        # still held by someone else's process: leave it to exit on its own
 
 
 def _reap(pool: list[_Worker]) -> None:

@@ -86,12 +86,15 @@ class _Table:
             self.flush()
         if self.bar is not None:
             failed = sum(r["status"] == "failed" for r in self.rows.values())
-            self.bar.set_postfix(frames=self.frames, failed=failed, refresh=False)
+            self.bar.set_postfix_str(f"frames={self.frames}, failed={failed}", refresh=False)
             self.bar.update(1)
 
     def flush(self) -> None:
-        write_csv(self.path, ([r[c] for c in COLUMNS] for _, r in sorted(self.rows.items())),
-                  header=COLUMNS)
+        try:
+            write_csv(self.path, ([r[c] for c in COLUMNS] for _, r in sorted(self.rows.items())),
+                      header=COLUMNS)
+        except OSError as exc:
+            raise InputError(f"{self.path}: cannot write ({exc.strerror or exc})") from None
 
     def close(self) -> None:
         if self.bar is not None:
@@ -102,9 +105,11 @@ class _Table:
 def run_batch(inputs: list[str], out: str | os.PathLike, cfg: Any = None, *,
               workers: int | None = None, engine: str = "local", address: str | None = None,
               save_frames: bool = False, save_video: bool = False, rerun: bool = False,
-              max_frames: int | None = None, progress: bool = False) -> BatchReport:
+              max_frames: int | None = None, progress: bool = False,
+              force: bool = False) -> BatchReport:
     """Track every video named by `inputs` into `out/<name>/`; writes out/batch.csv.
 
+    A video whose folder holds a complete summary.json is skipped unless `force`.
     Raises InputError before any work for bad inputs/options/missing extras;
     KeyboardInterrupt after batch.csv has been brought up to date.
     """
@@ -120,9 +125,11 @@ def run_batch(inputs: list[str], out: str | os.PathLike, cfg: Any = None, *,
     if max_frames is not None and max_frames < 1:
         raise InputError("--max-frames must be a positive integer")
     if engine != "local":
-        from vtrack.batch.cluster import require
+        from vtrack.batch.cluster import check_reachable, require
 
         require(engine)
+        if address:
+            check_reachable(address)
     if rerun:
         import importlib.util
 
@@ -146,17 +153,17 @@ def run_batch(inputs: list[str], out: str | os.PathLike, cfg: Any = None, *,
     batch_id = uuid.uuid4().hex[:12]
     todo: list[VideoTask] = []
     table = _Table(out / "batch.csv", len(videos), progress)
-    for i, (video, name) in enumerate(zip(videos, names)):
-        task = VideoTask(index=i, video=str(video), video_abs=os.path.abspath(video),
-                         out=str(out / name), out_abs=os.path.abspath(out / name), cfg=cfg,
-                         save_frames=save_frames, save_video=save_video, rerun=rerun,
-                         max_frames=max_frames, batch_id=batch_id)
-        done = completed_summary(out / name)
-        if done is not None:
-            table.add(row(task, "skipped", done), flush=False)
-        else:
-            todo.append(task)
     try:
+        for i, (video, name) in enumerate(zip(videos, names)):
+            task = VideoTask(index=i, video=str(video), video_abs=os.path.abspath(video),
+                             out=str(out / name), out_abs=os.path.abspath(out / name),
+                             cfg=cfg, save_frames=save_frames, save_video=save_video,
+                             rerun=rerun, max_frames=max_frames, batch_id=batch_id)
+            done = None if force else completed_summary(out / name)
+            if done is not None:
+                table.add(row(task, "skipped", done), flush=False)
+            else:
+                todo.append(task)
         table.flush()
         if not todo:
             pass

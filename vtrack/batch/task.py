@@ -86,6 +86,9 @@ def process_video(task: VideoTask) -> dict:
 def _process(task: VideoTask) -> dict:
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+    if task.cv_threads > 0 and "OPENCV_FOR_THREADS_NUM" not in os.environ:
+        # read by OpenCV at import: reaches the decoder child that VideoReader starts
+        os.environ["OPENCV_FOR_THREADS_NUM"] = str(task.cv_threads)
     ident = threading.get_ident()
     with _lock:
         if task.batch_id in _cancelled:

@@ -16,8 +16,8 @@ crossings.csv; frames/, annotated.mp4 and tracks.rrd on request). Videos whose s
 get their parent folders' names as a prefix (cam1/0800.mp4 -> cam1_0800). DIR/batch.csv
 lists video,out,status,frames,fps_processed,tracks,error (status ok, failed or skipped) and is
 rewritten as videos finish. A video whose summary.json says "complete": true is skipped, so
-an interrupted batch can simply be run again. Exit code 0 if every video is ok or skipped,
-2 if any failed, 130 if interrupted.
+an interrupted batch can simply be run again (--force re-tracks everything). Exit code 0 if
+every video is ok or skipped, 2 if any failed, 130 if interrupted.
 
 Engines: local (a process pool), ray or dask (pip install 'vtrack[ray]' / 'vtrack[dask]');
 with --address they use an existing cluster whose workers see the same paths, without it
@@ -32,7 +32,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", metavar="DIR", required=True, help="output folder")
     p.add_argument("--config", metavar="CFG.toml", help="TOML config (vtrack config --defaults)")
     p.add_argument("--workers", type=int, metavar="N",
-                   help="parallel videos (default: the number of cores)")
+                   help="parallel videos: local pool size, or the size of the local Ray/Dask "
+                        "cluster started without --address (default: the number of cores)")
     p.add_argument("--engine", choices=["local", "ray", "dask"], default="local",
                    help="where videos run (default: local)")
     p.add_argument("--address", metavar="ADDR",
@@ -43,6 +44,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-frames", type=int, metavar="N", help="stop each video after N frames")
     p.add_argument("--count-line", action="append", default=[], metavar="X1,Y1,X2,Y2",
                    help="counting line in pixels (repeatable)")
+    p.add_argument("--force", action="store_true",
+                   help="also re-track videos whose output is already complete")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
 
 
@@ -53,16 +56,19 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = config.load(args.config)
     cfg.count_lines = cfg.count_lines + [parse_count_line(t) for t in args.count_line]
+    from vtrack.batch.local import resource_tracker_running, stop_resource_tracker
+
+    tracker_was_running = resource_tracker_running()
     try:
         report = run_batch(args.inputs, args.out, cfg, workers=args.workers,
                            engine=args.engine, address=args.address,
                            save_frames=args.save_frames, save_video=args.save_video,
                            rerun=args.rerun, max_frames=args.max_frames,
-                           progress=not args.quiet and sys.stdout.isatty())
+                           progress=not args.quiet and sys.stdout.isatty(), force=args.force)
     finally:
-        if args.engine == "local":
-            from vtrack.batch.local import stop_resource_tracker
-
+        # multiprocessing's helper process (local pool, Dask's local workers) started for
+        # this batch must not outlive it
+        if not tracker_was_running:
             stop_resource_tracker()
     failed = report.failed
     if not args.quiet:
