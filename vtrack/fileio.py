@@ -17,8 +17,12 @@ from typing import IO, Any
 
 
 @contextlib.contextmanager
-def atomic_open(path: str | os.PathLike, mode: str = "w", **kw: Any) -> Iterator[IO]:
-    """Open a temporary file next to `path`; on success it replaces `path` atomically."""
+def atomic_open(path: str | os.PathLike, mode: str = "w", durable: bool = True,
+                **kw: Any) -> Iterator[IO]:
+    """Open a temporary file next to `path`; on success it replaces `path` atomically.
+
+    durable=False skips the fsync (for many small files such as annotated frames, where
+    atomicity matters but surviving a power cut does not)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -29,7 +33,8 @@ def atomic_open(path: str | os.PathLike, mode: str = "w", **kw: Any) -> Iterator
         with os.fdopen(fd, mode, **kw) as fh:
             yield fh
             fh.flush()
-            os.fsync(fh.fileno())
+            if durable:
+                os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

@@ -4,6 +4,8 @@ group of tracks and detections (one big dense Hungarian costs ~35 ms at 1000 x 1
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.sparse import coo_matrix
@@ -11,34 +13,38 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 
-def gated_pairs(pred: np.ndarray, S: np.ndarray, dets: np.ndarray, gate: float,
-                radius: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def gated_pairs(pred: np.ndarray, P: np.ndarray, dets: np.ndarray, gate: float,
+                max_radius: float,
+                pair_measurement: Callable[[np.ndarray, np.ndarray],
+                                           tuple[np.ndarray, np.ndarray]]
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Candidate (track, detection) pairs with squared Mahalanobis distance d2 <= gate.
 
-    pred (T, 2) predicted positions, S (T, 2, 2) their innovation covariances, dets (D, 2),
-    radius (T,) a Euclidean search radius that contains the gate ellipse; each track's 8
-    nearest detections within the largest radius are the candidates.
+    pred (T, 2) predicted positions with covariances P (T, 2, 2), dets (D, 2) detection
+    centres; pair_measurement(ti, di) gives each pair's measured position z (K, 2) and its
+    variances var (K, 2), so nu = z - pred and S = P + diag(var). Each track's 8 nearest
+    detections within max_radius are the candidates (a k-d tree query).
     Returns track indices, detection indices and the cost d2 + ln det S of each pair.
     """
+    e = np.empty(0, dtype=int)
     if len(pred) == 0 or len(dets) == 0:
-        e = np.empty(0, dtype=int)
         return e, e, np.empty(0)
     k = min(8, len(dets))  # a gate holds a few detections at most
-    _, idx = cKDTree(dets).query(pred, k=k, distance_upper_bound=float(radius.max()) + 1e-9)
+    _, idx = cKDTree(dets).query(pred, k=k, distance_upper_bound=max_radius)
     idx = idx.reshape(len(pred), k)
     ti = np.repeat(np.arange(len(pred)), k)
     di = idx.ravel()
     found = di < len(dets)
     ti, di = ti[found], di[found]
     if len(ti) == 0:
-        return ti, di, np.empty(0)
-    diff = dets[di] - pred[ti]
-    a, b, c = S[ti, 0, 0], S[ti, 0, 1], S[ti, 1, 1]
+        return e, e, np.empty(0)
+    z, var = pair_measurement(ti, di)
+    diff = z - pred[ti]
+    a, b, c = P[ti, 0, 0] + var[:, 0], P[ti, 0, 1], P[ti, 1, 1] + var[:, 1]
     det = a * c - b * b                                   # 2x2 closed forms
     d2 = (c * diff[:, 0] ** 2 - 2 * b * diff[:, 0] * diff[:, 1] + a * diff[:, 1] ** 2) / det
     ok = d2 <= gate
-    logdet = np.log(det)
-    return ti[ok], di[ok], d2[ok] + logdet[ok]
+    return ti[ok], di[ok], d2[ok] + np.log(det[ok])
 
 
 def assign(ti: np.ndarray, di: np.ndarray, cost: np.ndarray, n_tracks: int, n_dets: int

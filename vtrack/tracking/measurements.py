@@ -31,12 +31,14 @@ def difference_operator(h1: np.ndarray, h2: np.ndarray) -> np.ndarray:
 
 
 def finite_difference_measurement(points: np.ndarray, times: np.ndarray, count: np.ndarray,
-                                  sigma: float, position_only: bool = False
+                                  sigma: float | np.ndarray, position_only: bool = False
                                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Measurements of N tracks in the state layout [x, y, vx, vy, ax, ay].
 
     points (N, 3, 2): the last three detected centres, newest first; times (N, 3) their times;
-    count (N,): how many of them exist (1, 2 or 3). Returns z (N, 6), R (N, 6, 6) and the mask
+    count (N,): how many of them exist (1, 2 or 3); sigma: the std of each detected centre, a
+    number or (N, 3, 2) per detection and axis (R_axis = D diag(sigma^2) D'). Returns z (N, 6),
+    R (N, 6, 6) and the mask
     (N, 6) of rows present: a track with one detection measures its position only, with two
     also its velocity (eqs. 24-25); position_only keeps only the position rows.
     """
@@ -49,7 +51,10 @@ def finite_difference_measurement(points: np.ndarray, times: np.ndarray, count: 
     D = difference_operator(h1, h2)                          # (N, 3, 3)
     pva = np.einsum("nij,njd->nid", D, points)                # (N, 3 derivs, 2 axes)
     z = pva.reshape(n, 6)                                     # [x, y, vx, vy, ax, ay]
-    R = sigma**2 * np.kron(D @ np.swapaxes(D, -1, -2), np.eye(2)[None])
+    var = np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, (n, 3, 2))
+    R = np.zeros((n, 6, 6))
+    for axis in (0, 1):
+        R[:, axis::2, axis::2] = (D * var[:, None, :, axis]) @ np.swapaxes(D, -1, -2)
     rows = np.repeat(np.arange(3), 2)[None, :]                # derivative order of each row
     order = np.minimum(count, 1 if position_only else 3)[:, None]
     mask = rows < order

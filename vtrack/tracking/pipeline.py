@@ -81,6 +81,7 @@ class TrackJob:
             for frame in reader:
                 dets = detector.detect(frame.image)
                 ft = tracker.step(frame.index, frame.time, dets.centers, dets.boxes)
+                self.frames = frame.index
                 self.acc.times.append(frame.time)
                 self._record(ft)
                 if self.opts.save_frames or writer is not None:
@@ -88,7 +89,6 @@ class TrackJob:
                 if logger is not None:
                     logger.log_frame(frame, dets, ft, detector.foreground)
                     logger.log_trails(self.trails)
-                self.frames = frame.index
                 self.elapsed = time.perf_counter() - t0
                 if bar is not None:
                     bar.update(1)

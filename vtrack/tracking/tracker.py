@@ -3,7 +3,8 @@ stepped together as arrays through the shared core (vtrack.estimation.kalman).
 
 Lifecycle: tentative -> confirmed after `confirm_hits` hits in the last `confirm_window`
 frames -> coasting on the prediction while detections are lost -> deleted after
-`max_coast_frames` misses (a tentative track after `tentative_misses`) or when its predicted
+`max_coast_seconds` without a detection (a tentative track after `tentative_misses` missed
+frames) or when its predicted
 centre leaves the image. A track's rows from before confirmation are reported at
 confirmation (so its start is not lost) and its id is assigned then (ids have no gaps).
 """
@@ -12,9 +13,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import math
+
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.stats import chi2
 
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import ConstantAcceleration
@@ -45,10 +47,12 @@ class TrackerConfig:
         "chi-square gate on the predicted position (2 dof)"))
     max_gate_px: float = field(default=80.0, metadata=_h(
         "upper bound of the gate's Euclidean radius, px"))
-    confirm_hits: int = field(default=3, metadata=_h("M of the M-of-N confirmation"))
-    confirm_window: int = field(default=5, metadata=_h("N of the M-of-N confirmation"))
-    max_coast_frames: int = field(default=15, metadata=_h(
-        "frames a confirmed track coasts on its prediction before deletion"))
+    confirm_hits: int = field(default=6, metadata=_h(
+        "M of the M-of-N confirmation (a track's rows from before it are back-filled)"))
+    confirm_window: int = field(default=8, metadata=_h("N of the M-of-N confirmation"))
+    max_coast_seconds: float = field(default=1.0, metadata=_h(
+        "time a confirmed track coasts on its prediction without a detection before it is "
+        "deleted, s (in time, not frames, so it means the same at 24 and 60 fps)"))
     tentative_misses: int = field(default=2, metadata=_h(
         "misses that delete a track not yet confirmed"))
     size_smoothing: float = field(default=0.5, metadata=_h(
@@ -72,8 +76,8 @@ class TrackerConfig:
             raise ValueError("tracker.gate_probability must be in (0, 1)")
         if not 1 <= self.confirm_hits <= self.confirm_window <= 30:
             raise ValueError("tracker needs 1 <= confirm_hits <= confirm_window <= 30")
-        if self.max_coast_frames < 0 or self.tentative_misses < 1:
-            raise ValueError("tracker.max_coast_frames >= 0 and tentative_misses >= 1")
+        if self.max_coast_seconds < 0 or self.tentative_misses < 1:
+            raise ValueError("tracker.max_coast_seconds >= 0 and tentative_misses >= 1")
         if not (0 < self.size_smoothing <= 1 and 0 < self.size_shrink <= 1):
             raise ValueError("tracker.size_smoothing and size_shrink must be in (0, 1]")
 
@@ -103,7 +107,7 @@ class Tracker:
         self.cfg = cfg
         self.width, self.height = width, height
         self.model = ConstantAcceleration(cfg.jerk_psd)
-        self.gate = float(chi2.ppf(cfg.gate_probability, 2))
+        self.gate = -2.0 * math.log1p(-cfg.gate_probability)  # chi-square quantile, 2 dof
         self.next_id = 1
         self.next_uid = 0
         self.t_prev: float | None = None
@@ -113,6 +117,7 @@ class Tracker:
         self.size = np.zeros((n, 2))
         self.hist_p = np.zeros((n, 3, 2))   # last three detected centres, newest first
         self.hist_t = np.zeros((n, 3))
+        self.hist_s = np.zeros((n, 3, 2))   # their stds (see _centre_var)
         self.count = np.zeros(n, dtype=int)  # detections so far (capped at 3 for the FDs)
         self.hitmask = np.zeros(n, dtype=np.int64)  # bit i: hit i frames ago
         self.misses = np.zeros(n, dtype=int)
@@ -121,7 +126,8 @@ class Tracker:
         self.pending: dict[int, list[np.ndarray]] = {}  # rows of tentative tracks, by uid
 
     # ----------------------------------------------------------------- helpers
-    _arrays = ("x", "P", "size", "hist_p", "hist_t", "count", "hitmask", "misses", "id", "uid")
+    _KILLED = 1 << 40  # misses value that marks a duplicate track for deletion
+    _arrays = ("x", "P", "size", "hist_p", "hist_t", "hist_s", "count", "hitmask", "misses", "id", "uid")
 
     def _keep(self, keep: np.ndarray) -> None:
         for name in self._arrays:
@@ -157,13 +163,12 @@ class Tracker:
 
         centers, boxes = self._merge_fragments(centers, boxes)
         # Gate and assign on the predicted position.
-        r2 = cfg.detection_sigma**2
-        S = self.P[:, :2, :2] + r2 * np.eye(2)
-        radius = np.minimum(np.sqrt(self.gate * np.linalg.eigvalsh(S)[:, -1]), cfg.max_gate_px) \
-            if len(self) else np.zeros(0)
-        ti, di, cost = gated_pairs(self.x[:, :2], S, centers, self.gate, radius)
+        ti, di, cost = gated_pairs(
+            self.x[:, :2], self.P[:, :2, :2], centers, self.gate, cfg.max_gate_px,
+            lambda t, d: self._nested_centre(t, boxes[d]))
         mt, md = assign(ti, di, cost, len(self), len(centers))
-        mt, md = self._resolve_shared(mt, md, boxes)
+        mt, md, consumed = self._resolve_shared(mt, md, boxes)
+        mt, md = self._reacquire(mt, md, consumed, centers)
 
         self._update(mt, centers[md], boxes[md], t)
         hit = np.zeros(len(self), dtype=bool)
@@ -175,7 +180,7 @@ class Tracker:
         det_of = np.full(len(self), -1)
         det_of[mt] = md
 
-        spawned = self._spawn(frame, t, centers, boxes, md)
+        spawned = self._spawn(frame, t, centers, boxes, np.concatenate([md, consumed]))
         innov = np.concatenate([innov, np.full(spawned, np.nan)])
         det_of = np.concatenate([det_of, self._spawned_det])
         hit = np.concatenate([hit, np.ones(spawned, dtype=bool)])
@@ -219,46 +224,70 @@ class Tracker:
         boxes = boxes[keep]
         return boxes[:, :2] + boxes[:, 2:] / 2, boxes
 
+    def _reacquire(self, mt: np.ndarray, md: np.ndarray, consumed: np.ndarray,
+                   centers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Second association stage: a confirmed track left without a detection takes a
+        left-over detection whose centre lies inside its predicted box (nearest first).
+
+        A track that coasted on a prediction spoilt by partial detections (an occluder) can
+        drift out of its own gate while its vehicle is plainly inside its box; without this
+        stage the detection could neither update the track nor start a new one."""
+        lost = np.setdiff1d(np.flatnonzero((self.id > 0) & (self.misses < self._KILLED)), mt)
+        free = np.setdiff1d(np.arange(len(centers)), np.concatenate([md, consumed]))
+        if len(lost) == 0 or len(free) == 0:
+            return mt, md
+        bi, pi = points_in_boxes(centers[free], self.boxes()[lost])
+        if len(bi) == 0:
+            return mt, md
+        dist = np.linalg.norm(centers[free[pi]] - self.x[lost[bi], :2], axis=1)
+        rt, rd = assign(bi, pi, dist, len(lost), len(free))
+        return np.concatenate([mt, lost[rt]]), np.concatenate([md, free[rd]])
+
     def _resolve_shared(self, mt: np.ndarray, md: np.ndarray, boxes: np.ndarray
-                        ) -> tuple[np.ndarray, np.ndarray]:
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Detections whose box holds the predicted centres of two or more confirmed tracks.
 
-        If the detection is no bigger than the largest of those tracks' boxes, it is one
-        vehicle followed by duplicate tracks: the oldest track takes the detection and the
-        younger ones are deleted. If it is bigger, it is a merged blob of several vehicles: its
-        centroid belongs to none of them, so those tracks coast instead of being pulled toward
-        the middle.
+        If those tracks' boxes largely overlap (the intersection covers over half of the
+        smaller box), they follow one vehicle: the oldest track takes the detection and the
+        younger ones are deleted. Otherwise the detection is a merged blob of several
+        vehicles: its centroid belongs to none of them, so those tracks coast instead of being
+        pulled toward the middle, and the blob is consumed (it starts no track).
+        Returns the pairs and the consumed detections.
         """
+        consumed: list[int] = []
         conf = np.flatnonzero(self.id > 0)
         if len(boxes) == 0 or len(conf) < 2:
-            return mt, md
+            return mt, md, np.array(consumed, dtype=int)
         bi, pi = points_in_boxes(self.x[conf, :2], boxes)
         # A track whose centre lies in more than one detection box has a detection of its own.
         alone = np.bincount(pi, minlength=len(conf))[pi] == 1
         bi, pi = bi[alone], pi[alone]
-        shared = np.flatnonzero(np.bincount(bi, minlength=len(boxes)) >= 2)
-        for d in shared:
+        track_boxes = self.boxes()
+        for d in np.flatnonzero(np.bincount(bi, minlength=len(boxes)) >= 2):
             tracks = conf[pi[bi == d]]
-            area = boxes[d, 2] * boxes[d, 3]
             taken = np.isin(mt, tracks) | (md == d)
             mt, md = mt[~taken], md[~taken]
-            if area <= 1.3 * np.prod(self.size[tracks], axis=1).min():
-                oldest = tracks[np.argmin(self.uid[tracks])]
+            oldest = tracks[np.argmin(self.uid[tracks])]
+            others = tracks[tracks != oldest]
+            if np.all(_overlap_of_smaller(track_boxes[oldest], track_boxes[others]) > 0.5):
                 mt, md = np.append(mt, oldest), np.append(md, d)
-                self.misses[np.setdiff1d(tracks, oldest)] = np.iinfo(int).max // 2
-        return mt, md
+                self.misses[others] = self._KILLED
+            else:
+                consumed.append(int(d))
+        return mt, md, np.array(consumed, dtype=int)
 
     def _update(self, mt: np.ndarray, centers: np.ndarray, boxes: np.ndarray, t: float) -> None:
         cfg = self.cfg
         self._last_innov = np.zeros(len(mt))
         if len(mt) == 0:
             return
-        centers = self._visible_part_centre(mt, boxes)
+        centers, var = self._nested_centre(mt, boxes)
+        self.hist_s[mt] = np.concatenate([np.sqrt(var)[:, None], self.hist_s[mt, :2]], axis=1)
         self.hist_p[mt] = np.concatenate([centers[:, None], self.hist_p[mt, :2]], axis=1)
         self.hist_t[mt] = np.concatenate([np.full((len(mt), 1), t), self.hist_t[mt, :2]], axis=1)
         self.count[mt] = np.minimum(self.count[mt] + 1, 3)
         z, R, mask = finite_difference_measurement(
-            self.hist_p[mt], self.hist_t[mt], self.count[mt], cfg.detection_sigma,
+            self.hist_p[mt], self.hist_t[mt], self.count[mt], self.hist_s[mt],
             position_only=cfg.measurement == "position")
         nu = z - self.x[mt]
         self._last_innov = np.hypot(nu[:, 0], nu[:, 1])
@@ -268,28 +297,31 @@ class Tracker:
         grow = boxes[:, 2:] > size
         a = np.where(grow, cfg.size_smoothing, cfg.size_shrink)
         new = a * boxes[:, 2:] + (1 - a) * size
-        # A blob that suddenly outgrows the vehicle is usually two vehicles merged: cap the
-        # growth per frame (a vehicle coming into view at the border grows by about its
+        # A blob that suddenly outgrows the vehicle is usually several vehicles merged: cap
+        # the growth per frame (a vehicle coming into view at the border grows by about its
         # displacement per frame).
         dt = np.maximum(self.hist_t[mt, 0] - self.hist_t[mt, 1], 0.0)
         step = np.abs(self.x[mt, 2:4]) * np.where(self.count[mt] >= 2, dt, 0.0)[:, None]
         self.size[mt] = np.minimum(new, size * (1 + cfg.max_size_growth) + step + 2.0)
 
-    def _visible_part_centre(self, mt: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-        """Centre of the track's full-size box that contains the detected box and lies closest
-        to the prediction. A detection smaller than the vehicle (partly hidden by an occluder
-        or the image border) shows only part of it; its own centre would drag the track
-        toward the visible part. Per axis the full box [c - s/2, c + s/2] must contain
-        [d0, d1], so c is the prediction clipped to [d1 - s/2, d0 + s/2]; for a full-size
-        detection that interval is the detection's centre."""
-        half = self.size[mt] / 2
-        d0 = boxes[:, :2]
-        d1 = boxes[:, :2] + boxes[:, 2:]
-        lo = d1 - half
-        hi = d0 + half
-        centre = (d0 + d1) / 2
-        fits = lo <= hi
-        return np.where(fits, np.clip(self.x[mt, :2], lo, hi), centre)
+    def _nested_centre(self, tracks: np.ndarray, boxes: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """A detected box as a measurement (z, var) of the centres of `tracks` (K, 2 each).
+
+        A detection smaller than the vehicle (partly hidden by an occluder or the image
+        border) or larger (merged with a shadow, a ghost or another vehicle) only says that
+        the track's box and the detected box are nested. Per axis that puts the vehicle's
+        centre in the interval between d0 + s/2 and d1 - s/2 (detection [d0, d1], track box
+        size s), of length |w_det - s|; for a detection of the vehicle's size it is the
+        detection's centre. z is the prediction clipped to that interval and its variance is
+        the detector's sigma^2 plus that of a uniform spread over the interval, L^2 / 12.
+        """
+        half = self.size[tracks] / 2
+        a = boxes[:, :2] + half
+        b = boxes[:, :2] + boxes[:, 2:] - half
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        z = np.clip(self.x[tracks, :2], lo, hi)
+        return z, self.cfg.detection_sigma**2 + (hi - lo) ** 2 / 12.0
 
     def _spawn(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
                used: np.ndarray) -> int:
@@ -316,10 +348,11 @@ class Tracker:
         hist_p[:, 0] = centers[new]
         hist_t = np.zeros((k, 3))
         hist_t[:, 0] = t
+        hist_s = np.full((k, 3, 2), cfg.detection_sigma)
         uid = np.arange(self.next_uid, self.next_uid + k)
         self.next_uid += k
         self._append(x=x, P=np.repeat(P0[None], k, axis=0), size=boxes[new, 2:].copy(),
-                     hist_p=hist_p, hist_t=hist_t, count=np.ones(k, dtype=int),
+                     hist_p=hist_p, hist_t=hist_t, hist_s=hist_s, count=np.ones(k, dtype=int),
                      hitmask=np.ones(k, dtype=np.int64), misses=np.zeros(k, dtype=int),
                      id=np.zeros(k, dtype=int), uid=uid)
         return k
@@ -331,8 +364,10 @@ class Tracker:
         m = cfg.edge_margin_px
         inside = ((self.x[:, 0] >= -m) & (self.x[:, 0] <= self.width + m)
                   & (self.x[:, 1] >= -m) & (self.x[:, 1] <= self.height + m))
-        limit = np.where(self.id > 0, cfg.max_coast_frames, cfg.tentative_misses - 1)
-        return inside, self.misses <= limit
+        lost_for = self.t_prev - self.hist_t[:, 0]
+        alive = np.where(self.id > 0, lost_for <= cfg.max_coast_seconds + 1e-9,
+                         self.misses <= cfg.tentative_misses - 1)
+        return inside, alive & (self.misses < self._KILLED)
 
     def _emit(self, frame: int, hit: np.ndarray, inside: np.ndarray, alive: np.ndarray
               ) -> np.ndarray:
@@ -341,12 +376,13 @@ class Tracker:
         Rows wait in `pending` until they are known to be part of a track: a tentative
         track's rows until it is confirmed (they are then reported with its new id); a
         coasting track's predicted rows until a detection re-acquires it or its prediction
-        leaves the image. A track deleted after `max_coast_frames` misses never got its
+        leaves the image. A track deleted after `max_coast_seconds` without a detection never got its
         vehicle back, so its trailing predictions are dropped rather than reported.
         """
         cfg = self.cfg
         conf = np.where(hit, 1.0,
-                        np.clip(1.0 - self.misses / (cfg.max_coast_frames + 1), 0.05, 0.95))
+                        np.clip(1.0 - (self.t_prev - self.hist_t[:, 0])
+                                / (cfg.max_coast_seconds + 1e-9), 0.05, 0.95))
         rows = np.column_stack([np.full(len(self), frame), self.id, self.boxes(), conf])
         has_pending = np.isin(self.uid, np.fromiter(self.pending, dtype=int, count=len(self.pending)))
         simple = (self.id > 0) & hit & inside & alive & ~has_pending
@@ -372,6 +408,17 @@ class Tracker:
                 back[:, 1] = self.id[i]
                 out.append(back)
         return np.vstack(out) if out else np.zeros((0, 7))
+
+
+def _overlap_of_smaller(box: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Intersection area of `box` with each of `others` over the smaller of the two areas."""
+    x0 = np.maximum(box[0], others[:, 0])
+    y0 = np.maximum(box[1], others[:, 1])
+    x1 = np.minimum(box[0] + box[2], others[:, 0] + others[:, 2])
+    y1 = np.minimum(box[1] + box[3], others[:, 1] + others[:, 3])
+    inter = np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None)
+    smaller = np.minimum(box[2] * box[3], others[:, 2] * others[:, 3])
+    return inter / np.maximum(smaller, 1e-9)
 
 
 def points_in_boxes(points: np.ndarray, boxes: np.ndarray, k: int = 8

@@ -108,5 +108,5 @@ def save_jpeg(path: str | os.PathLike, image: np.ndarray, quality: int = 90) -> 
     ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise ValueError(f"{path}: JPEG encoding failed")
-    with atomic_open(path, "wb") as fh:
+    with atomic_open(path, "wb", durable=False) as fh:
         fh.write(data.tobytes())

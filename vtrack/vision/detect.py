@@ -60,7 +60,7 @@ class DetectorConfig:
                               "sensor noise (OpenCV's default 4 flickers on compressed video)")
     learning_rate: float = _f(-1.0, "MOG2 learning rate, 0..1 (negative: MOG2's fast start "
                                      "1 / (2 n) during the warm-up, then 1 / history)")
-    detect_shadows: bool = _f(True, "let MOG2 label shadows (127) so they can be dropped")
+    detect_shadows: bool = _f(False, "let MOG2 label shadows (127) so they can be dropped")
     shadow_ratio: float = _f(0.5, "MOG2 shadow threshold tau: darker than this is not shadow")
     shadow_threshold: int = _f(200, "mask values below this (MOG2 shadows are 127) are dropped")
     detect_width: int = _f(640, "frames wider than this are halved (INTER_AREA) until they "
@@ -69,7 +69,7 @@ class DetectorConfig:
     gain_compensation: bool = _f(True, "cancel fast global brightness changes (auto-exposure)")
     open_kernel: int = _f(3, "opening kernel (detection pixels, 0: off): removes speckle")
     close_kernel: int = _f(7, "closing kernel (detection pixels, 0: off): joins fragments")
-    min_pixels: int = _f(100, "smallest blob in pixels at the detection resolution: the noise "
+    min_pixels: int = _f(150, "smallest blob in pixels at the detection resolution: the noise "
                               "floor, the same for any video size")
     min_area: float = _f(0.0, "smallest blob area in the video's own (full-resolution) "
                               "pixels^2, on top of min_pixels")
