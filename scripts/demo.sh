@@ -4,6 +4,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup_env.sh
-.venv/bin/vtrack track videos/sample.avi --out runs/sample --save-video \
-  --rerun runs/sample/tracks.rrd --count-line 0,135,480,135 "$@"
+.venv/bin/vtrack track videos/sample.mp4 --out runs/sample --save-video \
+  --rerun runs/sample/tracks.rrd --count-line 320,0,320,360 "$@"
 .venv/bin/vtrack eval videos/sample_gt.csv runs/sample/tracks.csv

@@ -245,7 +245,7 @@ def test_interrupted_batch_exits_130_and_resumes(tmp_path, clip_factory, how):
     deadline = time.time() + 60
     while time.time() < deadline and len([p for p in out.glob("v*") if p.is_dir()]) < 2:
         time.sleep(0.05)
-    time.sleep(0.2)                       # both workers are inside track_video now
+    time.sleep(0.6)                       # both workers are inside track_video now
     workers = _children(proc.pid)
     if how == "ctrl-c":
         os.killpg(proc.pid, signal.SIGINT)    # a terminal's Ctrl-C reaches the whole group

@@ -393,6 +393,9 @@ class VideoWriterAtomic:
         fd, tmp = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=self.path.suffix,
                                    dir=self.path.parent)
         os.close(fd)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 would make the video private
         self._tmp = Path(tmp)
         self._writer: cv2.VideoWriter | None = cv2.VideoWriter(
             tmp, cv2.VideoWriter_fourcc(*"mp4v"), guarded_fps(fps), self.size)
