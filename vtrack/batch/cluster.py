@@ -23,6 +23,7 @@ import time
 import warnings
 from collections.abc import Callable
 
+from vtrack.batch.local import children_ignore_sigint
 from vtrack.batch.task import VideoTask, interrupt_batch, process_video, row
 from vtrack.errors import InputError, MissingExtraError
 
@@ -70,25 +71,6 @@ def _failed(task: VideoTask, exc: BaseException) -> dict:
     text = str(exc).strip().splitlines()
     detail = text[0] if text else ""
     return row(task, "failed", error=f"{task.video}: {type(exc).__name__}: {detail}")
-
-
-@contextlib.contextmanager
-def _children_ignore_sigint():
-    """Processes started inside inherit SIGINT ignored (a disposition survives exec).
-
-    A terminal's Ctrl-C reaches the whole process group; Dask worker processes would die of
-    it with tracebacks and take their running tasks along. Ignoring it, only the batch
-    process reacts and stops the tasks in order. A Ctrl-C while the cluster starts (a few
-    seconds) is therefore lost; the next one works.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 @contextlib.contextmanager
@@ -194,7 +176,7 @@ def run_dask(tasks: list[VideoTask], workers: int, address: str | None,
                 client = Client(address, timeout="20s")
             else:
                 with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
-                        _children_ignore_sigint():
+                        children_ignore_sigint():
                     cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                            processes=True, dashboard_address=None,
                                            silence_logs=logging.CRITICAL)

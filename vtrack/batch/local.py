@@ -89,7 +89,7 @@ class _Worker:
         parent_conn, child_conn = ctx.Pipe()
         self.proc = ctx.Process(target=_worker_main, args=(child_conn, os.getpid()),
                                 name=f"vtrack-batch-{slot}", daemon=True)
-        with _children_ignore_sigint():
+        with children_ignore_sigint():
             self.proc.start()
         child_conn.close()
         self.conn = parent_conn
@@ -119,10 +119,12 @@ class _Worker:
 
 
 @contextlib.contextmanager
-def _children_ignore_sigint():
-    """SIGINT ignored while a worker is started: the disposition survives exec, so workers
-    never see a terminal's Ctrl-C (only the parent does; it forwards SIGTERM). The window
-    is the fork/exec only."""
+def children_ignore_sigint():
+    """SIGINT ignored while worker processes are started: the disposition survives exec, so
+    workers never see a terminal's Ctrl-C (only the batch process does; it stops them in
+    order). The local pool forwards SIGTERM; Dask workers would otherwise die of it with
+    tracebacks and take their running tasks along. A Ctrl-C during the start-up window is
+    lost; the next one works."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return

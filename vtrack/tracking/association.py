@@ -13,6 +13,21 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 
+def nearest_pairs(queries: np.ndarray, points: np.ndarray, radius: float, k: int = 8
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(query, point) index pairs: each query's k nearest points within `radius`, found with a
+    k-d tree in one vectorised query (no Python loop over queries)."""
+    e = np.empty(0, dtype=int)
+    if len(queries) == 0 or len(points) == 0:
+        return e, e
+    k = min(k, len(points))
+    _, idx = cKDTree(points).query(queries, k=k, distance_upper_bound=radius)
+    qi = np.repeat(np.arange(len(queries)), k)
+    pi = idx.reshape(len(queries), k).ravel()
+    found = pi < len(points)
+    return qi[found], pi[found]
+
+
 def gated_pairs(pred: np.ndarray, P: np.ndarray, dets: np.ndarray, gate: float,
                 max_radius: float,
                 pair_measurement: Callable[[np.ndarray, np.ndarray],
@@ -26,18 +41,9 @@ def gated_pairs(pred: np.ndarray, P: np.ndarray, dets: np.ndarray, gate: float,
     detections within max_radius are the candidates (a k-d tree query).
     Returns track indices, detection indices and the cost d2 + ln det S of each pair.
     """
-    e = np.empty(0, dtype=int)
-    if len(pred) == 0 or len(dets) == 0:
-        return e, e, np.empty(0)
-    k = min(8, len(dets))  # a gate holds a few detections at most
-    _, idx = cKDTree(dets).query(pred, k=k, distance_upper_bound=max_radius)
-    idx = idx.reshape(len(pred), k)
-    ti = np.repeat(np.arange(len(pred)), k)
-    di = idx.ravel()
-    found = di < len(dets)
-    ti, di = ti[found], di[found]
+    ti, di = nearest_pairs(pred, dets, max_radius)  # a gate holds a few detections at most
     if len(ti) == 0:
-        return e, e, np.empty(0)
+        return ti, di, np.empty(0)
     z, var = pair_measurement(ti, di)
     diff = z - pred[ti]
     a, b, c = P[ti, 0, 0] + var[:, 0], P[ti, 0, 1], P[ti, 1, 1] + var[:, 1]

@@ -16,11 +16,10 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import ConstantAcceleration
-from vtrack.tracking.association import assign, gated_pairs
+from vtrack.tracking.association import assign, gated_pairs, nearest_pairs
 from vtrack.tracking.measurements import finite_difference_measurement
 
 
@@ -421,22 +420,11 @@ def _overlap_of_smaller(box: np.ndarray, others: np.ndarray) -> np.ndarray:
     return inter / np.maximum(smaller, 1e-9)
 
 
-def points_in_boxes(points: np.ndarray, boxes: np.ndarray, k: int = 8
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """(box, point) index pairs with the point inside the box (x, y, w, h), considering each
-    box's k nearest points (a box holds a few vehicle centres at most); a k-d tree keeps this
-    near-linear for thousands of boxes."""
-    if len(points) == 0 or len(boxes) == 0:
-        e = np.empty(0, dtype=int)
-        return e, e
+def points_in_boxes(points: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(box, point) index pairs with the point inside the box (x, y, w, h), among each box's 8
+    nearest points (a box holds a few vehicle centres at most)."""
     centre = boxes[:, :2] + boxes[:, 2:] / 2
-    k = min(k, len(points))
-    radius = float(np.hypot(boxes[:, 2], boxes[:, 3]).max()) / 2 + 1e-9
-    _, idx = cKDTree(points).query(centre, k=k, distance_upper_bound=radius)
-    idx = idx.reshape(len(boxes), k)
-    bi = np.repeat(np.arange(len(boxes)), k)
-    pi = idx.ravel()
-    found = pi < len(points)
-    bi, pi = bi[found], pi[found]
+    radius = float(np.hypot(boxes[:, 2], boxes[:, 3]).max()) / 2 + 1e-9 if len(boxes) else 0.0
+    bi, pi = nearest_pairs(centre, points, radius)
     inside = np.all(np.abs(points[pi] - centre[bi]) <= boxes[bi, 2:] / 2, axis=1)
     return bi[inside], pi[inside]
