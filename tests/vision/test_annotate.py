@@ -33,7 +33,7 @@ def test_draw_frame_returns_an_annotated_copy(shape):
     assert out.shape == image.shape and out.dtype == np.uint8
     assert np.array_equal(image, before)  # the input is not modified
     assert not np.array_equal(out, image)
-    x, y, w, h = 20, 30, 40, 20  # the confirmed track's box edge is in its colour
+    x, y, h = 20, 30, 20  # the confirmed track's box edge is in its colour
     assert tuple(int(v) for v in out[y + h // 2, x]) == track_colour(3)
 
 

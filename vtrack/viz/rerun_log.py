@@ -15,7 +15,6 @@ logged at their own frames) and is cleared on the frame after its last row.
 
 from __future__ import annotations
 
-import colorsys
 import re
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from vtrack.errors import MissingExtraError
+from vtrack.vision.annotate import track_colour
 
 try:
     import rerun as rr
@@ -37,10 +37,9 @@ def _require() -> None:
 
 
 def track_color(track_id: int) -> tuple[int, int, int]:
-    """A stable, well-separated colour per id (golden-ratio hue steps)."""
-    h = (track_id * 0.618033988749895) % 1.0
-    r, g, b = colorsys.hsv_to_rgb(h, 0.85, 1.0)
-    return int(r * 255), int(g * 255), int(b * 255)
+    """The id's RGB colour: the same one the annotated frames use (vision.annotate)."""
+    b, g, r = track_colour(track_id)
+    return r, g, b
 
 
 def ellipse_points(mean: np.ndarray, cov: np.ndarray, k: float = 2.0, n: int = 32) -> np.ndarray:
