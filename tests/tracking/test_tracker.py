@@ -138,3 +138,21 @@ def test_masked_rows_do_not_change_the_update():
     x2, P2, _ = kf_update(x, P, (z - x)[:4], np.eye(6)[:4], Rfull[:4, :4])
     np.testing.assert_allclose(x1, x2, atol=1e-12)
     np.testing.assert_allclose(P1, P2, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["ankf1", "ankf2", "fuzzy-r", "fuzzy-q", "siim-ekf"])
+def test_adaptive_kinds_as_the_per_vehicle_filter(kind):
+    """Each adaptive kind of the core runs per track, bridges the lost frames with one id and
+    keeps the state arrays equal to its filter objects."""
+    gaps = set(range(60, 66))
+    rows, states = _run([_accelerating], gaps=gaps, frames=90, cfg=TrackerConfig(filter=kind))
+    assert {r.id for r in rows} == {1}
+    assert sorted(r.frame for r in rows) == list(range(1, 91))
+    err = [abs(r.box[0] + r.box[2] / 2 - _accelerating((r.frame - 1) / FPS)[0]) for r in rows
+           if r.frame > 20]
+    assert max(err) < 8.0
+
+
+def test_unknown_per_vehicle_filter_is_rejected():
+    with pytest.raises(ValueError, match="tracker.filter"):
+        Tracker(TrackerConfig(filter="ukf"), W, H)

@@ -17,10 +17,14 @@ import math
 
 import numpy as np
 
+from vtrack.estimation.filters import GaussianFilter, make_filter
 from vtrack.estimation.kalman import kf_predict, kf_update
-from vtrack.estimation.models import ConstantAcceleration
+from vtrack.estimation.models import ConstantAcceleration, position_measurement
 from vtrack.tracking.association import assign, gated_pairs, nearest_pairs
 from vtrack.tracking.measurements import finite_difference_measurement
+
+
+ADAPTIVE_KINDS = ("ankf1", "ankf2", "fuzzy-r", "fuzzy-q", "siim-ekf")
 
 
 def _h(text: str) -> dict:
@@ -31,6 +35,10 @@ def _h(text: str) -> dict:
 class TrackerConfig:
     """Tracker parameters ([tracker] in the TOML config)."""
 
+    filter: str = field(default="kf", metadata=_h(
+        "per-vehicle filter: 'kf' (all tracks stepped together as arrays, with the "
+        "`measurement` below) or an adaptive kind of the core run per track on the position "
+        "rows: 'ankf1', 'ankf2', 'fuzzy-r', 'fuzzy-q', 'siim-ekf'"))
     measurement: str = field(default="finite-difference", metadata=_h(
         "'finite-difference': position + finite-difference velocity and acceleration "
         "(seed 001 eqs. 24-26, H = I6); 'position': position only"))
@@ -65,6 +73,8 @@ class TrackerConfig:
         "a track whose predicted centre is this far outside the image is deleted"))
 
     def validate(self) -> None:
+        if self.filter not in ("kf",) + ADAPTIVE_KINDS:
+            raise ValueError(f"tracker.filter must be one of kf, {', '.join(ADAPTIVE_KINDS)}")
         if self.measurement not in ("finite-difference", "position"):
             raise ValueError("tracker.measurement must be 'finite-difference' or 'position'")
         for name in ("jerk_psd", "detection_sigma", "init_speed_sigma", "init_accel_sigma",
@@ -122,13 +132,19 @@ class Tracker:
         self.misses = np.zeros(n, dtype=int)
         self.id = np.zeros(n, dtype=int)     # 0 while tentative
         self.uid = np.zeros(n, dtype=int)
-        self.pending: dict[int, list[np.ndarray]] = {}  # rows of tentative tracks, by uid
+        self.pending: dict[int, list[np.ndarray]] = {}
+        # Adaptive kinds: one core filter object per track (by uid) on the position rows.
+        self.filters: dict[int, GaussianFilter] | None = None if cfg.filter == "kf" else {}
+        self._position = position_measurement(6, cfg.detection_sigma)  # rows of tentative tracks, by uid
 
     # ----------------------------------------------------------------- helpers
     _KILLED = 1 << 40  # misses value that marks a duplicate track for deletion
     _arrays = ("x", "P", "size", "hist_p", "hist_t", "hist_s", "count", "hitmask", "misses", "id", "uid")
 
     def _keep(self, keep: np.ndarray) -> None:
+        if self.filters is not None:
+            for uid in self.uid[~keep]:
+                del self.filters[int(uid)]
         for name in self._arrays:
             setattr(self, name, getattr(self, name)[keep])
 
@@ -157,8 +173,14 @@ class Tracker:
         dt = 0.0 if self.t_prev is None else t - self.t_prev
         self.t_prev = t
         if len(self) and dt > 0:
-            F = self.model.transition(dt)
-            self.x, self.P = kf_predict(self.x, self.P, F, self.model.Q(dt))
+            if self.filters is None:
+                F = self.model.transition(dt)
+                self.x, self.P = kf_predict(self.x, self.P, F, self.model.Q(dt))
+            else:
+                for i, uid in enumerate(self.uid):
+                    f = self.filters[int(uid)]
+                    f.predict(dt)
+                    self.x[i], self.P[i] = f.x, f.P
 
         centers, boxes = self._merge_fragments(centers, boxes)
         # Gate and assign on the predicted position.
@@ -290,8 +312,14 @@ class Tracker:
             position_only=cfg.measurement == "position")
         nu = z - self.x[mt]
         self._last_innov = np.hypot(nu[:, 0], nu[:, 1])
-        H = np.tile(np.eye(6), (len(mt), 1, 1))
-        self.x[mt], self.P[mt], _ = kf_update(self.x[mt], self.P[mt], nu, H, R, mask=mask)
+        if self.filters is None:
+            H = np.tile(np.eye(6), (len(mt), 1, 1))
+            self.x[mt], self.P[mt], _ = kf_update(self.x[mt], self.P[mt], nu, H, R, mask=mask)
+        else:  # adaptive kinds adapt their own noise from the position innovations
+            for i, zi in zip(mt, z[:, :2], strict=True):
+                f = self.filters[int(self.uid[i])]
+                f.update(zi)
+                self.x[i], self.P[i] = f.x, f.P
         size = self.size[mt]
         grow = boxes[:, 2:] > size
         a = np.where(grow, cfg.size_smoothing, cfg.size_shrink)
@@ -350,6 +378,10 @@ class Tracker:
         hist_s = np.full((k, 3, 2), cfg.detection_sigma)
         uid = np.arange(self.next_uid, self.next_uid + k)
         self.next_uid += k
+        if self.filters is not None:
+            for u, xi in zip(uid, x, strict=True):
+                self.filters[int(u)] = make_filter(cfg.filter, self.model, self._position,
+                                                   xi, P0)
         self._append(x=x, P=np.repeat(P0[None], k, axis=0), size=boxes[new, 2:].copy(),
                      hist_p=hist_p, hist_t=hist_t, hist_s=hist_s, count=np.ones(k, dtype=int),
                      hitmask=np.ones(k, dtype=np.int64), misses=np.zeros(k, dtype=int),
