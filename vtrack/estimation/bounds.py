@@ -42,3 +42,14 @@ def position_rmse_bound(bounds: np.ndarray, pos: tuple[int, int] = (0, 1)) -> np
     """sqrt([J^-1]_xx + [J^-1]_yy) per step: the least achievable position RMSE."""
     i, j = pos
     return np.sqrt(bounds[:, i, i] + bounds[:, j, j])
+
+
+def paired_difference(a: np.ndarray, b: np.ndarray) -> dict[str, float | int | None]:
+    """Mean of the per-run differences a_r - b_r of two filters run on the same Monte Carlo
+    runs, with its standard error, over the runs where both are finite (SEEDS 1.7).
+    Undefined values (no runs; one run for the SE) are None, so the result is valid JSON."""
+    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+    d = d[np.isfinite(d)]
+    mean = float(np.mean(d)) if len(d) else None
+    se = float(np.std(d, ddof=1) / np.sqrt(len(d))) if len(d) > 1 else None
+    return {"mean": mean, "se": se, "runs": int(len(d))}

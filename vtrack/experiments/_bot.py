@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vtrack.estimation.adaptive import InnovationWindow, ankf1_update, ankf2_update
-from vtrack.estimation.bounds import chi2_band, nees, pcrlb_linear
+from vtrack.estimation.bounds import chi2_band, nees, paired_difference, pcrlb_linear
 from vtrack.estimation.filters import make_filter
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.linalg import EstimationError, wrap_angle
@@ -402,15 +402,6 @@ def summarize(run: FilterRun, truth: np.ndarray, bound_var: np.ndarray | None,
     if paper_rmse is not None:
         out["paper_rmse"] = paper_rmse
     return out
-
-
-def paired_difference(a: np.ndarray, b: np.ndarray) -> dict[str, float | int]:
-    """Mean of the per-run differences a_r - b_r (e.g. per-run RMSEs of two filters on the same
-    runs) with its standard error, over the runs where both are finite."""
-    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
-    d = d[np.isfinite(d)]
-    se = float(np.std(d, ddof=1) / np.sqrt(len(d))) if len(d) > 1 else float("nan")
-    return {"mean": float(np.mean(d)) if len(d) else float("nan"), "se": se, "runs": int(len(d))}
 
 
 def per_step_rmse(run: FilterRun, truth: np.ndarray) -> np.ndarray:

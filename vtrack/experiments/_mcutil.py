@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 
 import numpy as np
 
@@ -38,10 +37,4 @@ def nees_summary(nees: np.ndarray, dof: int) -> dict[str, float]:
         "nees_steps_in_band": float(np.mean((per_step >= lo) & (per_step <= hi))),
     }
 
-
-def paired_difference(a: Iterable[float], b: Iterable[float]) -> dict[str, float | None]:
-    """Mean of per-run differences a - b and its standard error (for honest comparisons)."""
-    d = np.asarray(list(a), dtype=float) - np.asarray(list(b), dtype=float)
-    se = float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else None
-    return {"mean": float(d.mean()), "se": se}
 

@@ -26,7 +26,8 @@ from vtrack.estimation.bounds import chi2_band, nees
 from vtrack.estimation.filters import GaussianFilter, make_filter
 from vtrack.estimation.models import LinearMeasurement, MotionModel
 from vtrack.experiments import ExampleRun, ExperimentResult, register
-from vtrack.experiments._mcutil import nees_summary, paired_difference, run_generators
+from vtrack.estimation.bounds import paired_difference
+from vtrack.experiments._mcutil import nees_summary, run_generators
 
 KINDS = ("kf", "fuzzy-r", "fuzzy-q")
 T = 0.1

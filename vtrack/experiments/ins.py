@@ -24,7 +24,8 @@ from vtrack.estimation.ins import NavState, attitude_error
 from vtrack.estimation.ins_filter import InsFilterConfig, run_ins_filter
 from vtrack.estimation.so3 import dcm_to_euler, exp_so3
 from vtrack.experiments import ExampleRun, ExperimentResult, register
-from vtrack.experiments._mcutil import nees_summary, paired_difference, run_generators
+from vtrack.estimation.bounds import paired_difference
+from vtrack.experiments._mcutil import nees_summary, run_generators
 from vtrack.sim.imu import GpsSpec, ImuSpec, simulate_gps, simulate_imu
 from vtrack.sim.ins_trajectory import (Trajectory, car_drive, earth_rate_enu, generate,
                                        uav_racetrack)

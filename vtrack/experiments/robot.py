@@ -31,7 +31,8 @@ from vtrack.estimation.kalman import Innovation
 from vtrack.estimation.linalg import EstimationError, wrap_angle
 from vtrack.estimation.models import MeasurementModel, MotionModel, pose_measurement
 from vtrack.experiments import ExampleRun, ExperimentResult, register
-from vtrack.experiments._mcutil import nees_summary, paired_difference, run_generators
+from vtrack.estimation.bounds import paired_difference
+from vtrack.experiments._mcutil import nees_summary, run_generators
 
 KINDS = ("ukf", "srukf", "crukf")
 

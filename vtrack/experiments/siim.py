@@ -24,7 +24,8 @@ from vtrack.estimation.bounds import chi2_band, nees, pcrlb_linear
 from vtrack.estimation.filters import GaussianFilter, make_filter
 from vtrack.estimation.models import Bearings, MeasurementModel, MotionModel, Ranges
 from vtrack.experiments import ExampleRun, ExperimentResult, register
-from vtrack.experiments._mcutil import nees_summary, paired_difference, run_generators
+from vtrack.estimation.bounds import paired_difference
+from vtrack.experiments._mcutil import nees_summary, run_generators
 
 GAMMA_SWEEP = (1e-3, 1e-2, 5e-2)
 
