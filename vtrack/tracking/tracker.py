@@ -1,19 +1,22 @@
 """Multi-target vehicle tracker: one constant-acceleration Kalman filter per vehicle, all
 stepped together as arrays through the shared core (vtrack.estimation.kalman).
 
+Per frame: predict; join pieces of one vehicle; gate (Mahalanobis, k-d-tree candidates) and
+assign (per connected group); resolve blobs shared by several tracks; let coasting tracks
+re-acquire detections inside their boxes; update (Joseph form); start tentative tracks.
+
 Lifecycle: tentative -> confirmed after `confirm_hits` hits in the last `confirm_window`
 frames -> coasting on the prediction while detections are lost -> deleted after
 `max_coast_seconds` without a detection (a tentative track after `tentative_misses` missed
-frames) or when its predicted
-centre leaves the image. A track's rows from before confirmation are reported at
-confirmation (so its start is not lost) and its id is assigned then (ids have no gaps).
+frames) or when its predicted centre leaves the image. A track's rows from before
+confirmation are reported at confirmation (so its start is not lost) and its id is assigned
+then (ids have no gaps).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -22,7 +25,6 @@ from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import ConstantAcceleration, position_measurement
 from vtrack.tracking.association import assign, gated_pairs, nearest_pairs
 from vtrack.tracking.measurements import finite_difference_measurement
-
 
 ADAPTIVE_KINDS = ("ankf1", "ankf2", "fuzzy-r", "fuzzy-q", "siim-ekf")
 
@@ -65,7 +67,8 @@ class TrackerConfig:
     size_smoothing: float = field(default=0.5, metadata=_h(
         "weight of a detection that is larger than the track's box in the box size (0..1]"))
     max_size_growth: float = field(default=0.1, metadata=_h(
-        "largest relative growth of a track's box per frame away from the image border"))
+        "largest relative growth of a track's box per frame (plus the track's displacement, "
+        "so a vehicle coming into view at the border can grow)"))
     size_shrink: float = field(default=0.05, metadata=_h(
         "weight of a smaller detection in the box size: small, because a vehicle partly "
         "hidden by an occluder or the image border looks smaller (0..1]"))
@@ -126,20 +129,21 @@ class Tracker:
         self.size = np.zeros((n, 2))
         self.hist_p = np.zeros((n, 3, 2))   # last three detected centres, newest first
         self.hist_t = np.zeros((n, 3))
-        self.hist_s = np.zeros((n, 3, 2))   # their stds (see _centre_var)
+        self.hist_s = np.zeros((n, 3, 2))   # their stds (see _nested_centre)
         self.count = np.zeros(n, dtype=int)  # detections so far (capped at 3 for the FDs)
         self.hitmask = np.zeros(n, dtype=np.int64)  # bit i: hit i frames ago
         self.misses = np.zeros(n, dtype=int)
         self.id = np.zeros(n, dtype=int)     # 0 while tentative
         self.uid = np.zeros(n, dtype=int)
-        self.pending: dict[int, list[np.ndarray]] = {}
+        self.pending: dict[int, list[np.ndarray]] = {}  # rows not yet final, by uid (_emit)
         # Adaptive kinds: one core filter object per track (by uid) on the position rows.
         self.filters: dict[int, GaussianFilter] | None = None if cfg.filter == "kf" else {}
-        self._position = position_measurement(6, cfg.detection_sigma)  # rows of tentative tracks, by uid
+        self._position = position_measurement(6, cfg.detection_sigma)
 
     # ----------------------------------------------------------------- helpers
     _KILLED = 1 << 40  # misses value that marks a duplicate track for deletion
-    _arrays = ("x", "P", "size", "hist_p", "hist_t", "hist_s", "count", "hitmask", "misses", "id", "uid")
+    _arrays = ("x", "P", "size", "hist_p", "hist_t", "hist_s", "count", "hitmask", "misses",
+               "id", "uid")
 
     def _keep(self, keep: np.ndarray) -> None:
         if self.filters is not None:
@@ -186,12 +190,12 @@ class Tracker:
         # Gate and assign on the predicted position.
         ti, di, cost = gated_pairs(
             self.x[:, :2], self.P[:, :2, :2], centers, self.gate, cfg.max_gate_px,
-            lambda t, d: self._nested_centre(t, boxes[d]))
+            lambda trk, det: self._nested_centre(trk, boxes[det]))
         mt, md = assign(ti, di, cost, len(self), len(centers))
         mt, md, consumed = self._resolve_shared(mt, md, boxes)
         mt, md = self._reacquire(mt, md, consumed, centers)
 
-        self._update(mt, centers[md], boxes[md], t)
+        self._update(mt, boxes[md], t)
         hit = np.zeros(len(self), dtype=bool)
         hit[mt] = True
         self.hitmask = ((self.hitmask << 1) | hit) & ((1 << cfg.confirm_window) - 1)
@@ -297,7 +301,8 @@ class Tracker:
                 consumed.append(int(d))
         return mt, md, np.array(consumed, dtype=int)
 
-    def _update(self, mt: np.ndarray, centers: np.ndarray, boxes: np.ndarray, t: float) -> None:
+    def _update(self, mt: np.ndarray, boxes: np.ndarray, t: float) -> None:
+        """Update tracks `mt` with their detected boxes at time t (seed 001 eqs. 24-26)."""
         cfg = self.cfg
         self._last_innov = np.zeros(len(mt))
         if len(mt) == 0:
