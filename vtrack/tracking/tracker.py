@@ -107,7 +107,7 @@ class FrameTracks:
     states: np.ndarray         # (K, 6) posterior [x, y, vx, vy, ax, ay]
     covariances: np.ndarray    # (K, 6, 6)
     innovations: np.ndarray    # (K,) |position innovation| in px (nan when coasted)
-    rows: np.ndarray           # (R, 7) ROW_COLUMNS to write, incl. rows back-filled at confirmation
+    rows: np.ndarray           # (R, 7) ROW_COLUMNS to write (incl. rows back-filled later)
     detection_of: np.ndarray   # (K,) index of the detection used (-1 when coasted)
 
 
@@ -412,15 +412,16 @@ class Tracker:
         Rows wait in `pending` until they are known to be part of a track: a tentative
         track's rows until it is confirmed (they are then reported with its new id); a
         coasting track's predicted rows until a detection re-acquires it or its prediction
-        leaves the image. A track deleted after `max_coast_seconds` without a detection never got its
-        vehicle back, so its trailing predictions are dropped rather than reported.
+        leaves the image. A track deleted after `max_coast_seconds` without a detection never
+        got its vehicle back, so its trailing predictions are dropped rather than reported.
         """
         cfg = self.cfg
         conf = np.where(hit, 1.0,
                         np.clip(1.0 - (self.t_prev - self.hist_t[:, 0])
                                 / (cfg.max_coast_seconds + 1e-9), 0.05, 0.95))
         rows = np.column_stack([np.full(len(self), frame), self.id, self.boxes(), conf])
-        has_pending = np.isin(self.uid, np.fromiter(self.pending, dtype=int, count=len(self.pending)))
+        waiting = np.fromiter(self.pending, dtype=int, count=len(self.pending))
+        has_pending = np.isin(self.uid, waiting)
         simple = (self.id > 0) & hit & inside & alive & ~has_pending
         out = [rows[simple]]
         hits = np.bitwise_count(self.hitmask)
