@@ -12,12 +12,12 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from vtrack.errors import InputError
+from vtrack.fileio import read_toml
 from vtrack.tracking.tracker import TrackerConfig
 from vtrack.vision.detect import DetectorConfig
 
@@ -123,16 +123,8 @@ def load(path: str | Path | None) -> AppConfig:
     """Read a TOML config file (None: the defaults)."""
     if path is None:
         return AppConfig()
-    p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{p}: config file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{p}: cannot read config ({exc})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{p}: malformed TOML ({exc})") from None
-    return from_dict(data, str(p))
+    data = read_toml(path)
+    return from_dict(data, str(path))
 
 
 def _toml_value(v: Any) -> str:

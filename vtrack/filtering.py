@@ -17,13 +17,13 @@ from __future__ import annotations
 import csv
 import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from vtrack.errors import InputError, MissingExtraError
+from vtrack.fileio import read_toml
 from vtrack.estimation.filters import GaussianFilter, make_filter
 from vtrack.estimation.linalg import EstimationError
 from vtrack.estimation.models import (
@@ -161,24 +161,6 @@ class _Section:
                                      label=f"{key}[{i}]") for i, v in enumerate(val)])
 
 
-def _read_toml(path: str) -> dict[str, Any]:
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, not a TOML file") from None
-    except PermissionError:
-        raise InputError(f"{path}: permission denied") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not UTF-8 text ({exc.reason})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: malformed TOML: {exc}") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
-
-
 def load_config(path: str | os.PathLike) -> FilterConfig:
     """Parse CONFIG.toml (INTERFACE.md `vtrack filter`) and validate it completely.
 
@@ -186,7 +168,7 @@ def load_config(path: str | os.PathLike) -> FilterConfig:
     handle, or a P0 that is not positive definite is reported against the config file
     before any measurement is read."""
     path = str(path)
-    return config_from_dict(_read_toml(path), path)
+    return config_from_dict(read_toml(path), path)
 
 
 def config_from_dict(doc: dict[str, Any], path: str = "<config>") -> FilterConfig:
