@@ -56,7 +56,7 @@ def kf_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np
     inverse serves the gain and the NIS.
     """
     H = np.ascontiguousarray(H)  # matmul on a zero-stride broadcast view is ~4x slower
-    if mask is not None:
+    if mask is not None and not mask.all():
         keep = mask.astype(float)
         nu = np.where(mask, nu, 0.0)
         H = H * keep[..., :, None]
@@ -70,7 +70,7 @@ def kf_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np
         raise NotPositiveDefiniteError("innovation covariance S is not positive definite") from None
     # One solve with S for the gain and the NIS together: S^-1 [H P | nu] (no explicit inverse).
     sol = np.linalg.solve(S, np.concatenate([_T(PHt), nu[..., :, None]], axis=-1))
-    Kt = sol[..., :-1]
+    Kt = np.ascontiguousarray(sol[..., :-1])
     K = _T(Kt)
     x_new = x + (K @ nu[..., None])[..., 0]
     A = _eye(P.shape[-1]) - K @ H

@@ -60,16 +60,20 @@ def assign(ti: np.ndarray, di: np.ndarray, cost: np.ndarray, n_tracks: int, n_de
     if len(ti) == 0:
         e = np.empty(0, dtype=int)
         return e, e
+    # A pair whose track and detection have no other candidate is a component of its own.
+    single = ((np.bincount(ti, minlength=n_tracks)[ti] == 1)
+              & (np.bincount(di, minlength=n_dets)[di] == 1))
+    out_t = [ti[single]]
+    out_d = [di[single]]
+    ti, di, cost = ti[~single], di[~single], cost[~single]
+    if len(ti) == 0:
+        return out_t[0], out_d[0]
     graph = coo_matrix((np.ones(len(ti)), (ti, n_tracks + di)),
                        shape=(n_tracks + n_dets,) * 2)
     _, label = connected_components(graph, directed=False)
-    comp = label[ti]
-    sizes = np.bincount(comp)
-    single = sizes[comp] == 1            # a component with exactly one pair
-    out_t = [ti[single]]
-    out_d = [di[single]]
-    for c in np.unique(comp[~single]):
-        sel = np.flatnonzero(comp == c)
+    order = np.argsort(label[ti], kind="stable")
+    starts = np.flatnonzero(np.diff(label[ti][order], prepend=-1))
+    for sel in np.split(order, starts[1:]):
         rows, r_inv = np.unique(ti[sel], return_inverse=True)
         cols, c_inv = np.unique(di[sel], return_inverse=True)
         big = 1e9

@@ -257,9 +257,13 @@ class Tracker:
         A track that coasted on a prediction spoilt by partial detections (an occluder) can
         drift out of its own gate while its vehicle is plainly inside its box; without this
         stage the detection could neither update the track nor start a new one."""
-        lost = np.setdiff1d(np.flatnonzero((self.id > 0) & (self.misses < self._KILLED)), mt)
+        waiting = (self.id > 0) & (self.misses < self._KILLED)
+        waiting[mt] = False
+        lost = np.flatnonzero(waiting)
+        if len(lost) == 0:
+            return mt, md
         free = np.setdiff1d(np.arange(len(centers)), np.concatenate([md, consumed]))
-        if len(lost) == 0 or len(free) == 0:
+        if len(free) == 0:
             return mt, md
         bi, pi = points_in_boxes(centers[free], self.boxes()[lost])
         if len(bi) == 0:
@@ -308,9 +312,9 @@ class Tracker:
         if len(mt) == 0:
             return
         centers, var = self._nested_centre(mt, boxes)
-        self.hist_s[mt] = np.concatenate([np.sqrt(var)[:, None], self.hist_s[mt, :2]], axis=1)
-        self.hist_p[mt] = np.concatenate([centers[:, None], self.hist_p[mt, :2]], axis=1)
-        self.hist_t[mt] = np.concatenate([np.full((len(mt), 1), t), self.hist_t[mt, :2]], axis=1)
+        for hist, newest in ((self.hist_s, np.sqrt(var)), (self.hist_p, centers), (self.hist_t, t)):
+            hist[mt, 1:] = hist[mt, :-1]  # fancy indexing copies before the write
+            hist[mt, 0] = newest
         self.count[mt] = np.minimum(self.count[mt] + 1, 3)
         z, R, mask = finite_difference_measurement(
             self.hist_p[mt], self.hist_t[mt], self.count[mt], self.hist_s[mt],
