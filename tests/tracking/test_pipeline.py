@@ -93,10 +93,7 @@ def test_outputs_follow_the_interface(synth_video, tmp_path):
 
 
 @pytest.mark.parametrize("clip,lines,expected", [
-    pytest.param("highway", (0.6, 0.8), 27, marks=pytest.mark.xfail(
-        reason="known gap: 22/21 of 27 with the default config; queued right-lane vehicles "
-               "merge into one blob far from the camera (see README, Known limits)",
-        strict=False)),
+    ("highway", (0.6, 0.8), 27),
     ("residential", (0.6,), 3),
 ])
 def test_real_clip_line_counts_match_hand_counts(tmp_path, real_clip, clip, lines, expected):

@@ -156,3 +156,57 @@ def test_adaptive_kinds_as_the_per_vehicle_filter(kind):
 def test_unknown_per_vehicle_filter_is_rejected():
     with pytest.raises(ValueError, match="tracker.filter"):
         Tracker(TrackerConfig(filter="ukf"), W, H)
+
+
+def _run_boxes(boxes_at, frames, cfg=None, seed=0):
+    """boxes_at(t) -> list of (x, y, w, h) detections; returns the FrameTracks per frame."""
+    rng = np.random.default_rng(seed)
+    tr = Tracker(cfg or TrackerConfig(), W, H)
+    out = []
+    for n in range(1, frames + 1):
+        t = (n - 1) / FPS
+        b = np.array(boxes_at(t), dtype=float).reshape(-1, 4)
+        b[:, :2] += rng.normal(0, 0.5, (len(b), 2))
+        out.append(tr.step(n, t, b[:, :2] + b[:, 2:] / 2, b))
+    return out
+
+
+def _side_by_side(t):
+    """Two cars in adjacent lanes driving together: one merged blob until t = 1.6 s (as far
+    from the camera), then two detections with a gap between the lanes."""
+    x = 40 + 120 * t
+    if t < 1.6:
+        return [(x, 160, 40, 50)]
+    return [(x, 160, 40, 20), (x, 190, 40, 20)]
+
+
+def test_vehicles_of_one_blob_get_their_own_tracks_when_it_comes_apart():
+    states = _run_boxes(_side_by_side, frames=110)
+    last = states[-1]
+    assert len(last.ids) == 2
+    ys = sorted(last.boxes[:, 1] + last.boxes[:, 3] / 2)
+    assert ys == pytest.approx([170, 200], abs=3)
+    assert np.all(last.boxes[:, 3] < 30)  # neither box still spans both lanes
+
+
+def _behind_a_pole(t):
+    """One car (60 px long) passing behind a static pole at x in [300, 312]: while it
+    overlaps the pole it is detected as two pieces with a gap that does not move."""
+    x0, x1 = 100 + 120 * t, 160 + 120 * t
+    pieces = [(a, b) for a, b in ((x0, min(x1, 300)), (max(x0, 312), x1)) if b - a >= 2]
+    return [(a, 170, b - a, 20) for a, b in pieces]
+
+
+def test_occluder_pieces_stay_one_vehicle():
+    states = _run_boxes(_behind_a_pole, frames=75)
+    ids = set().union(*(s.ids.tolist() for s in states))
+    assert ids == {1}
+    assert len(states[-1].ids) == 1
+
+
+@pytest.mark.parametrize("confirm_motion,expect_track", [(0.3, False), (0.0, True)])
+def test_blob_that_never_moves_is_not_confirmed(confirm_motion, expect_track):
+    """Swaying leaves: a blob detected in every frame, jittering but going nowhere."""
+    leaves = lambda t: (200 + 3 * np.sin(9 * t), 120 + 2 * np.cos(7 * t))  # noqa: E731
+    rows, _ = _run([leaves], frames=200, cfg=TrackerConfig(confirm_motion=confirm_motion))
+    assert bool(rows) == expect_track

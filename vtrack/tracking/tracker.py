@@ -6,9 +6,10 @@ assign (per connected group); resolve blobs shared by several tracks; let coasti
 re-acquire detections inside their boxes; update (Joseph form); start tentative tracks.
 
 Lifecycle: tentative -> confirmed after `confirm_hits` hits in the last `confirm_window`
-frames -> coasting on the prediction while detections are lost -> deleted after
-`max_coast_seconds` without a detection (a tentative track after `tentative_misses` missed
-frames) or when its predicted centre leaves the image. A track's rows from before
+frames, once it has moved `confirm_motion` box diagonals (static clutter never does) ->
+coasting on the prediction while detections are lost -> deleted after `max_coast_seconds`
+without a detection (a tentative track after `tentative_misses` missed frames) or when its
+predicted box has left the image. A track's rows from before
 confirmation are reported at confirmation (so its start is not lost) and its id is assigned
 then (ids have no gaps).
 """
@@ -16,6 +17,7 @@ then (ids have no gaps).
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,10 +61,14 @@ class TrackerConfig:
     confirm_hits: int = field(default=6, metadata=_h(
         "M of the M-of-N confirmation (a track's rows from before it are back-filled)"))
     confirm_window: int = field(default=8, metadata=_h("N of the M-of-N confirmation"))
+    confirm_motion: float = field(default=0.3, metadata=_h(
+        "a track is confirmed only once its detected centre has moved this many box "
+        "diagonals from where it was first seen: a vehicle moves, swaying leaves and "
+        "flicker stay put (0 turns the check off)"))
     max_coast_seconds: float = field(default=1.0, metadata=_h(
         "time a confirmed track coasts on its prediction without a detection before it is "
         "deleted, s (in time, not frames, so it means the same at 24 and 60 fps)"))
-    tentative_misses: int = field(default=2, metadata=_h(
+    tentative_misses: int = field(default=3, metadata=_h(
         "misses that delete a track not yet confirmed"))
     size_smoothing: float = field(default=0.5, metadata=_h(
         "weight of a detection that is larger than the track's box in the box size (0..1]"))
@@ -72,8 +78,13 @@ class TrackerConfig:
     size_shrink: float = field(default=0.05, metadata=_h(
         "weight of a smaller detection in the box size: small, because a vehicle partly "
         "hidden by an occluder or the image border looks smaller (0..1]"))
+    split_evidence_px: float = field(default=8.0, metadata=_h(
+        "a track whose box holds two pieces tells one vehicle cut by an occluder (the gap "
+        "between the pieces stays put) from several vehicles (the gap moves with them) once "
+        "it has moved this far since the pieces appeared, px"))
     edge_margin_px: float = field(default=0.0, metadata=_h(
-        "a track whose predicted centre is this far outside the image is deleted"))
+        "a track is deleted once its whole predicted box is this far outside the image (a "
+        "vehicle half out of view keeps its track: the nested-box measurement follows it)"))
 
     def validate(self) -> None:
         if self.filter not in ("kf",) + ADAPTIVE_KINDS:
@@ -81,13 +92,15 @@ class TrackerConfig:
         if self.measurement not in ("finite-difference", "position"):
             raise ValueError("tracker.measurement must be 'finite-difference' or 'position'")
         for name in ("jerk_psd", "detection_sigma", "init_speed_sigma", "init_accel_sigma",
-                     "max_gate_px"):
+                     "max_gate_px", "split_evidence_px"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"tracker.{name} must be positive")
         if not 0 < self.gate_probability < 1:
             raise ValueError("tracker.gate_probability must be in (0, 1)")
         if not 1 <= self.confirm_hits <= self.confirm_window <= 30:
             raise ValueError("tracker needs 1 <= confirm_hits <= confirm_window <= 30")
+        if self.confirm_motion < 0:
+            raise ValueError("tracker.confirm_motion must be >= 0")
         if self.max_coast_seconds < 0 or self.tentative_misses < 1:
             raise ValueError("tracker.max_coast_seconds >= 0 and tentative_misses >= 1")
         if not (0 < self.size_smoothing <= 1 and 0 < self.size_shrink <= 1):
@@ -130,20 +143,27 @@ class Tracker:
         self.hist_p = np.zeros((n, 3, 2))   # last three detected centres, newest first
         self.hist_t = np.zeros((n, 3))
         self.hist_s = np.zeros((n, 3, 2))   # their stds (see _nested_centre)
+        self.origin = np.zeros((n, 2))      # the first detected centre
         self.count = np.zeros(n, dtype=int)  # detections so far (capped at 3 for the FDs)
         self.hitmask = np.zeros(n, dtype=np.int64)  # bit i: hit i frames ago
         self.misses = np.zeros(n, dtype=int)
         self.id = np.zeros(n, dtype=int)     # 0 while tentative
         self.uid = np.zeros(n, dtype=int)
-        self.pending: dict[int, list[np.ndarray]] = {}  # rows not yet final, by uid (_emit)
+        self.gap_p = np.full((n, 2), np.nan)  # where the gap between two pieces was first seen
+        self.gap_t = np.full(n, np.nan)       # and when (nan: the track's box holds one piece)
+        self.split = np.zeros(n, dtype=bool)  # its box held several vehicles this frame
+        # Rows not yet final, by uid (_emit); a tentative track that never moves keeps only
+        # its latest rows, so static clutter cannot grow memory without bound.
+        self.pending: dict[int, deque[np.ndarray]] = {}
         # Adaptive kinds: one core filter object per track (by uid) on the position rows.
         self.filters: dict[int, GaussianFilter] | None = None if cfg.filter == "kf" else {}
         self._position = position_measurement(6, cfg.detection_sigma)
 
     # ----------------------------------------------------------------- helpers
     _KILLED = 1 << 40  # misses value that marks a duplicate track for deletion
-    _arrays = ("x", "P", "size", "hist_p", "hist_t", "hist_s", "count", "hitmask", "misses",
-               "id", "uid")
+    _MAX_PENDING = 4096  # rows kept for a track not yet confirmed (see pending)
+    _arrays = ("x", "P", "size", "origin", "hist_p", "hist_t", "hist_s", "count", "hitmask",
+               "misses", "id", "uid", "gap_p", "gap_t", "split")
 
     def _keep(self, keep: np.ndarray) -> None:
         if self.filters is not None:
@@ -186,7 +206,7 @@ class Tracker:
                     f.predict(dt)
                     self.x[i], self.P[i] = f.x, f.P
 
-        centers, boxes = self._merge_fragments(centers, boxes)
+        centers, boxes = self._merge_fragments(t, centers, boxes)
         # Gate and assign on the predicted position.
         ti, di, cost = gated_pairs(
             self.x[:, :2], self.P[:, :2, :2], centers, self.gate, cfg.max_gate_px,
@@ -221,33 +241,60 @@ class Tracker:
                            covariances=self.P[conf].copy(), innovations=innov[conf],
                            rows=rows, detection_of=det_of[conf])
 
-    def _merge_fragments(self, centers: np.ndarray, boxes: np.ndarray
+    def _merge_fragments(self, t: float, centers: np.ndarray, boxes: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray]:
         """Detections whose centres all fall inside one confirmed track's predicted box (and in
-        no other) are pieces of one vehicle cut by an occluder: join them into their union."""
+        no other) are pieces of one vehicle cut by an occluder, or several vehicles the track
+        has followed as one blob (a queue far from the camera) that have now come apart.
+
+        The gap between the two largest pieces tells them apart: an occluder is static, so
+        the gap stays where it first appeared while the vehicle moves on; the gap between two
+        vehicles moves with them. Once the track has moved `split_evidence_px` since the
+        pieces appeared, a gap that followed it by half that or more marks the track as
+        `split` (its box then shrinks to the piece it takes, freeing the others to start
+        tracks); until then, and for a static gap, the pieces are joined into their union.
+        Pieces spanning more than 1.2 times the track's box are separate vehicles at once."""
+        self.split = np.zeros(len(self), dtype=bool)
         conf = np.flatnonzero(self.id > 0)
-        if len(conf) == 0 or len(centers) < 2:
-            return centers, boxes
-        bi, di = points_in_boxes(centers, self.boxes()[conf])
-        claims = np.bincount(di, minlength=len(centers))
-        ok = claims[di] == 1
-        bi, di = bi[ok], di[ok]
-        per_box = np.bincount(bi, minlength=len(conf))
-        if not np.any(per_box >= 2):
-            return centers, boxes
-        keep = np.ones(len(centers), dtype=bool)
-        boxes = boxes.copy()
-        size = self.size[conf]
-        for b in np.flatnonzero(per_box >= 2):
-            parts = di[bi == b]
-            x0 = boxes[parts, :2].min(axis=0)
-            x1 = (boxes[parts, :2] + boxes[parts, 2:]).max(axis=0)
-            if np.any(x1 - x0 > 1.2 * size[b]):
-                continue  # the pieces span more than one vehicle: separate vehicles
-            boxes[parts[0]] = [*x0, *(x1 - x0)]
-            keep[parts[1:]] = False
-        boxes = boxes[keep]
-        return boxes[:, :2] + boxes[:, 2:] / 2, boxes
+        held = np.zeros(len(self), dtype=bool)
+        if len(conf) and len(centers) >= 2:
+            bi, di = points_in_boxes(centers, self.boxes()[conf])
+            claims = np.bincount(di, minlength=len(centers))
+            ok = claims[di] == 1
+            bi, di = bi[ok], di[ok]
+            per_box = np.bincount(bi, minlength=len(conf))
+            keep = np.ones(len(centers), dtype=bool)
+            boxes = boxes.copy()
+            for b in np.flatnonzero(per_box >= 2):
+                track, parts = conf[b], di[bi == b]
+                held[track] = True
+                x0 = boxes[parts, :2].min(axis=0)
+                x1 = (boxes[parts, :2] + boxes[parts, 2:]).max(axis=0)
+                apart = np.any(x1 - x0 > 1.2 * self.size[track])
+                if apart or self._gap_moved(track, t, boxes[parts]):
+                    self.split[track] = True
+                    continue
+                boxes[parts[0]] = [*x0, *(x1 - x0)]
+                keep[parts[1:]] = False
+            boxes = boxes[keep]
+            centers = boxes[:, :2] + boxes[:, 2:] / 2
+        self.gap_t[~held | self.split] = np.nan
+        return centers, boxes
+
+    def _gap_moved(self, track: int, t: float, pieces: np.ndarray) -> bool:
+        """Whether the gap between the two largest `pieces` (x, y, w, h) has moved with the
+        track since it first appeared (see _merge_fragments); records it when it is new."""
+        a, b = pieces[np.argsort(pieces[:, 2] * pieces[:, 3])[-2:]]
+        lo = np.minimum(a[:2] + a[2:], b[:2] + b[2:])   # per axis: the facing edges when the
+        hi = np.maximum(a[:2], b[:2])                   # pieces are apart, else their overlap
+        gap = (lo + hi) / 2
+        if np.isnan(self.gap_t[track]):
+            self.gap_p[track], self.gap_t[track] = gap, t
+            return False
+        travelled = np.hypot(*self.x[track, 2:4]) * (t - self.gap_t[track])
+        if travelled < self.cfg.split_evidence_px:
+            return False
+        return bool(np.hypot(*(gap - self.gap_p[track])) >= 0.5 * travelled)
 
     def _reacquire(self, mt: np.ndarray, md: np.ndarray, consumed: np.ndarray,
                    centers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -332,13 +379,15 @@ class Tracker:
         size = self.size[mt]
         grow = boxes[:, 2:] > size
         a = np.where(grow, cfg.size_smoothing, cfg.size_shrink)
+        a = np.where(self.split[mt, None], 1.0, a)  # its other vehicles are not its size
         new = a * boxes[:, 2:] + (1 - a) * size
         # A blob that suddenly outgrows the vehicle is usually several vehicles merged: cap
         # the growth per frame (a vehicle coming into view at the border grows by about its
         # displacement per frame).
         dt = np.maximum(self.hist_t[mt, 0] - self.hist_t[mt, 1], 0.0)
         step = np.abs(self.x[mt, 2:4]) * np.where(self.count[mt] >= 2, dt, 0.0)[:, None]
-        self.size[mt] = np.minimum(new, size * (1 + cfg.max_size_growth) + step + 2.0)
+        self.size[mt] = np.where(self.split[mt, None], new,
+                                 np.minimum(new, size * (1 + cfg.max_size_growth) + step + 2.0))
 
     def _nested_centre(self, tracks: np.ndarray, boxes: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -392,18 +441,20 @@ class Tracker:
                 self.filters[int(u)] = make_filter(cfg.filter, self.model, self._position,
                                                    xi, P0)
         self._append(x=x, P=np.repeat(P0[None], k, axis=0), size=boxes[new, 2:].copy(),
+                     origin=centers[new],
                      hist_p=hist_p, hist_t=hist_t, hist_s=hist_s, count=np.ones(k, dtype=int),
                      hitmask=np.ones(k, dtype=np.int64), misses=np.zeros(k, dtype=int),
-                     id=np.zeros(k, dtype=int), uid=uid)
+                     id=np.zeros(k, dtype=int), uid=uid, gap_p=np.full((k, 2), np.nan),
+                     gap_t=np.full(k, np.nan), split=np.zeros(k, dtype=bool))
         return k
 
     def _fate(self) -> tuple[np.ndarray, np.ndarray]:
-        """(inside, alive): whether each predicted centre is still in the image, and whether
-        the track is within its miss limit."""
+        """(inside, alive): whether part of each predicted box is still in the image, and
+        whether the track is within its miss limit."""
         cfg = self.cfg
-        m = cfg.edge_margin_px
-        inside = ((self.x[:, 0] >= -m) & (self.x[:, 0] <= self.width + m)
-                  & (self.x[:, 1] >= -m) & (self.x[:, 1] <= self.height + m))
+        m = cfg.edge_margin_px + self.size / 2
+        inside = ((self.x[:, 0] >= -m[:, 0]) & (self.x[:, 0] <= self.width + m[:, 0])
+                  & (self.x[:, 1] >= -m[:, 1]) & (self.x[:, 1] <= self.height + m[:, 1]))
         lost_for = self.t_prev - self.hist_t[:, 0]
         alive = np.where(self.id > 0, lost_for <= cfg.max_coast_seconds + 1e-9,
                          self.misses <= cfg.tentative_misses - 1)
@@ -414,10 +465,11 @@ class Tracker:
         """The rows that became final this frame.
 
         Rows wait in `pending` until they are known to be part of a track: a tentative
-        track's rows until it is confirmed (they are then reported with its new id); a
-        coasting track's predicted rows until a detection re-acquires it or its prediction
-        leaves the image. A track deleted after `max_coast_seconds` without a detection never
-        got its vehicle back, so its trailing predictions are dropped rather than reported.
+        track's rows until it is confirmed (M-of-N hits and `confirm_motion`; they are then
+        reported with its new id); a coasting track's predicted rows until a detection
+        re-acquires it or its prediction leaves the image. A track deleted after
+        `max_coast_seconds` without a detection never got its vehicle back, so its trailing
+        predictions are dropped rather than reported.
         """
         cfg = self.cfg
         conf = np.where(hit, 1.0,
@@ -429,6 +481,9 @@ class Tracker:
         simple = (self.id > 0) & hit & inside & alive & ~has_pending
         out = [rows[simple]]
         hits = np.bitwise_count(self.hitmask)
+        diagonal = np.hypot(self.size[:, 0], self.size[:, 1])
+        moved = (np.hypot(*(self.hist_p[:, 0] - self.origin).T)
+                 >= cfg.confirm_motion * diagonal)
         for i in np.flatnonzero(~simple):
             uid = int(self.uid[i])
             if not alive[i]:
@@ -440,8 +495,8 @@ class Tracker:
                 else:
                     self.pending.pop(uid, None)
                 continue
-            self.pending.setdefault(uid, []).append(rows[i])
-            if self.id[i] == 0 and hits[i] >= cfg.confirm_hits and hit[i]:
+            self.pending.setdefault(uid, deque(maxlen=self._MAX_PENDING)).append(rows[i])
+            if self.id[i] == 0 and hits[i] >= cfg.confirm_hits and hit[i] and moved[i]:
                 self.id[i] = self.next_id
                 self.next_id += 1
             if self.id[i] > 0 and hit[i]:
