@@ -210,3 +210,18 @@ def test_blob_that_never_moves_is_not_confirmed(confirm_motion, expect_track):
     leaves = lambda t: (200 + 3 * np.sin(9 * t), 120 + 2 * np.cos(7 * t))  # noqa: E731
     rows, _ = _run([leaves], frames=200, cfg=TrackerConfig(confirm_motion=confirm_motion))
     assert bool(rows) == expect_track
+
+
+def test_tentative_track_keeps_a_detection_that_jumps_inside_its_box():
+    """The visible part of a vehicle jumps 16 px sideways, out of the gate but inside the
+    box (part of it goes behind a tree), while its track is still tentative: the track takes
+    it, no second track starts."""
+    tr = Tracker(TrackerConfig(), W, H)
+    for n in range(1, 6):
+        t = (n - 1) / FPS
+        x = 100 + 100 * t
+        y = 180.0 if n < 5 else 196.0
+        box = np.array([[x - 50, y - 20, 100, 40]])
+        tr.step(n, t, box[:, :2] + box[:, 2:] / 2, box)
+        assert len(tr) == 1
+    assert tr.misses[0] == 0

@@ -298,13 +298,15 @@ class Tracker:
 
     def _reacquire(self, mt: np.ndarray, md: np.ndarray, consumed: np.ndarray,
                    centers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Second association stage: a confirmed track left without a detection takes a
-        left-over detection whose centre lies inside its predicted box (nearest first).
+        """Second association stage: a track left without a detection takes a left-over
+        detection whose centre lies inside its predicted box (nearest first).
 
         A track that coasted on a prediction spoilt by partial detections (an occluder) can
         drift out of its own gate while its vehicle is plainly inside its box; without this
-        stage the detection could neither update the track nor start a new one."""
-        waiting = (self.id > 0) & (self.misses < self._KILLED)
+        stage the detection could neither update the track nor start a new one. A tentative
+        track takes part too: when the visible part of a vehicle jumps (entering behind an
+        occluder), a second track on the same vehicle would otherwise start beside it."""
+        waiting = self.misses < self._KILLED
         waiting[mt] = False
         lost = np.flatnonzero(waiting)
         if len(lost) == 0:
