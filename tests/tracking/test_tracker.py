@@ -225,3 +225,20 @@ def test_tentative_track_keeps_a_detection_that_jumps_inside_its_box():
         tr.step(n, t, box[:, :2] + box[:, 2:] / 2, box)
         assert len(tr) == 1
     assert tr.misses[0] == 0
+
+
+def test_rows_of_a_vehicle_leaving_the_image_have_visible_boxes():
+    """Vehicles drive out of the right edge at many speeds; detections (clipped to the image)
+    stop when less than half is visible and the tracks coast out. No row may carry an empty
+    box (eval and INTERFACE require w, h > 0)."""
+    rows = []
+    for k, speed in enumerate(np.linspace(60, 260, 21)):
+        def leaving(t, speed=speed):
+            x0 = 400 + speed * t
+            x1 = min(x0 + 80, W)
+            return [(x0, 150, x1 - x0, 24)] if x1 - x0 >= 40 else []
+        states = _run_boxes(leaving, frames=60, seed=k)
+        rows.extend(r for s in states for r in s.rows)
+    rows = np.array(rows)
+    assert len(rows) > 0
+    assert np.all(rows[:, 4] >= 1.0) and np.all(rows[:, 5] >= 1.0)

@@ -477,10 +477,14 @@ class Tracker:
         conf = np.where(hit, 1.0,
                         np.clip(1.0 - (self.t_prev - self.hist_t[:, 0])
                                 / (cfg.max_coast_seconds + 1e-9), 0.05, 0.95))
-        rows = np.column_stack([np.full(len(self), frame), self.id, self.boxes(), conf])
+        boxes = self.boxes()
+        rows = np.column_stack([np.full(len(self), frame), self.id, boxes, conf])
+        # A prediction at the image edge can clip to an empty box: such a row has no position
+        # in the image and is not reported (INTERFACE: w, h > 0).
+        visible = (boxes[:, 2] >= 1.0) & (boxes[:, 3] >= 1.0)
         waiting = np.fromiter(self.pending, dtype=int, count=len(self.pending))
         has_pending = np.isin(self.uid, waiting)
-        simple = (self.id > 0) & hit & inside & alive & ~has_pending
+        simple = (self.id > 0) & hit & inside & alive & ~has_pending & visible
         out = [rows[simple]]
         hits = np.bitwise_count(self.hitmask)
         diagonal = np.hypot(self.size[:, 0], self.size[:, 1])
@@ -497,11 +501,12 @@ class Tracker:
                 else:
                     self.pending.pop(uid, None)
                 continue
-            self.pending.setdefault(uid, deque(maxlen=self._MAX_PENDING)).append(rows[i])
+            if visible[i]:
+                self.pending.setdefault(uid, deque(maxlen=self._MAX_PENDING)).append(rows[i])
             if self.id[i] == 0 and hits[i] >= cfg.confirm_hits and hit[i] and moved[i]:
                 self.id[i] = self.next_id
                 self.next_id += 1
-            if self.id[i] > 0 and hit[i]:
+            if self.id[i] > 0 and hit[i] and uid in self.pending:
                 back = np.array(self.pending.pop(uid))
                 back[:, 1] = self.id[i]
                 out.append(back)
