@@ -1,7 +1,10 @@
-"""Shared fixtures: synthetic videos (rendered once per session) and the real clips."""
+"""Shared fixtures: synthetic videos (rendered once per session), the real clips and an
+in-process CLI runner."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 from pathlib import Path
 
 import pytest
@@ -45,3 +48,17 @@ def real_clip():
         return path
 
     return get
+
+
+@pytest.fixture
+def cli_stdout():
+    """args -> what `vtrack ARGS` prints on stdout, run in-process (it must exit 0)."""
+    from vtrack.cli import main
+
+    def run(args: list[str]) -> str:
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            assert main(args) == 0
+        return buf.getvalue()
+
+    return run

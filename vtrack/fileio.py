@@ -75,17 +75,26 @@ def replace_dir(path: str | os.PathLike) -> Path:
     return path
 
 
-def read_toml(path: str | os.PathLike) -> dict[str, Any]:
-    """Parse a TOML file; any problem is an InputError naming the file."""
+def open_input(path: str | os.PathLike, what: str, mode: str = "r", **kwargs: Any) -> IO:
+    """Open a user's input file; a missing, unreadable or directory path is an InputError
+    naming the file (`what` names the kind of file expected, e.g. "CSV file")."""
     try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
+        return open(path, mode, **kwargs)
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None
     except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, not a TOML file") from None
+        raise InputError(f"{path}: is a directory, not a {what}") from None
     except PermissionError:
         raise InputError(f"{path}: permission denied") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+
+
+def read_toml(path: str | os.PathLike) -> dict[str, Any]:
+    """Parse a TOML file; any problem is an InputError naming the file."""
+    try:
+        with open_input(path, "TOML file", "rb") as fh:
+            return tomllib.load(fh)
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not UTF-8 text ({exc.reason})") from None
     except tomllib.TOMLDecodeError as exc:

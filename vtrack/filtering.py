@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from vtrack.errors import InputError, MissingExtraError
-from vtrack.fileio import read_toml
+from vtrack.fileio import open_input, read_toml
 from vtrack.estimation.filters import GaussianFilter, make_filter
 from vtrack.estimation.linalg import EstimationError
 from vtrack.estimation.models import (
@@ -322,14 +322,7 @@ def read_measurements(path: str | os.PathLike, cfg: FilterConfig) -> Measurement
     path = str(path)
     expected = cfg.csv_header()
     m = cfg.m
-    try:
-        fh = open(path, newline="", encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, not a CSV file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    fh = open_input(path, "CSV file", newline="", encoding="utf-8-sig")
     t: list[float] = []
     z: list[list[float]] = []
     u: list[list[float]] = []

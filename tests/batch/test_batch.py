@@ -208,6 +208,16 @@ def test_missing_extra_names_the_pip_command(tree, monkeypatch, capsys, engine, 
 
 
 # ----------------------------------------------------------------------- interruption
+def _start_batch(inputs: Path, out: Path, workers: int) -> subprocess.Popen:
+    """`vtrack batch INPUTS --out OUT` in a process group of its own, to be interrupted."""
+    env = dict(os.environ)
+    env.setdefault("PYTHONPATH", str(ROOT))
+    return subprocess.Popen([sys.executable, "-m", "vtrack", "batch", str(inputs),
+                             "--out", str(out), "--workers", str(workers), "--quiet"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
+                            start_new_session=True)
+
+
 def _children(pid: int) -> list[int]:
     kids = []
     for entry in Path("/proc").iterdir():
@@ -236,12 +246,7 @@ def test_interrupted_batch_exits_130_and_resumes(tmp_path, clip_factory, how):
     for k in range(3):
         _copy(clip_factory(frames, 10 + k), tmp_path / "in" / f"v{k}.avi")
     out = tmp_path / "out"
-    env = dict(os.environ)
-    env.setdefault("PYTHONPATH", str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "vtrack", "batch", str(tmp_path / "in"),
-                             "--out", str(out), "--workers", "2", "--quiet"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
-                            start_new_session=True)
+    proc = _start_batch(tmp_path / "in", out, workers=2)
     deadline = time.time() + 60
     while time.time() < deadline and len([p for p in out.glob("v*") if p.is_dir()]) < 2:
         time.sleep(0.05)
@@ -288,12 +293,7 @@ def test_a_worker_that_dies_fails_only_its_video(tmp_path, clip_factory):
     for k, (frames, seed) in enumerate([(800, 10), (40, 0), (40, 1)]):   # cached clips
         _copy(clip_factory(frames, seed), tmp_path / "in" / f"v{k}.avi")
     out = tmp_path / "out"
-    env = dict(os.environ)
-    env.setdefault("PYTHONPATH", str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "vtrack", "batch", str(tmp_path / "in"),
-                             "--out", str(out), "--workers", "1", "--quiet"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
-                            start_new_session=True)
+    proc = _start_batch(tmp_path / "in", out, workers=1)
     deadline = time.time() + 60
     while time.time() < deadline and not (out / "v0").is_dir():
         time.sleep(0.02)

@@ -7,16 +7,12 @@ import numpy as np
 import pytest
 
 from vtrack.cli import main
+from vtrack.estimation.bounds import paired_difference
 from vtrack.estimation.models import Bearings
 from vtrack.experiments import _bot as bot
 from vtrack.experiments.ankf import scenarios
 
 RUNS = 20
-
-
-def _diff(a, b):
-    d = np.asarray(a) - np.asarray(b)
-    return d.mean(), d.std(ddof=1) / np.sqrt(len(d))
 
 
 @pytest.fixture(scope="module")
@@ -77,13 +73,17 @@ def test_batched_adaptive_filters_equal_the_core_filters(seeds, kind, opts, case
 
 
 def test_ankf2_beats_the_ekf_in_case_3a(case_3a):
-    mean, se = _diff(_rmse(case_3a, "ankf2"), _rmse(case_3a, "ekf"))
+    diff = paired_difference(_rmse(case_3a, "ankf2"), _rmse(case_3a, "ekf"))
+    assert diff["runs"] == RUNS  # no run diverged
+    mean, se = diff["mean"], diff["se"]
     assert mean + 3 * se < 0, (mean, se)
 
 
 @pytest.mark.parametrize("kind", ["ankf1", "ankf2"])
 def test_adaptive_filters_beat_the_ekf_in_case_3b(case_3b, kind):
-    mean, se = _diff(_rmse(case_3b, kind), _rmse(case_3b, "ekf"))
+    diff = paired_difference(_rmse(case_3b, kind), _rmse(case_3b, "ekf"))
+    assert diff["runs"] == RUNS  # no run diverged
+    mean, se = diff["mean"], diff["se"]
     assert mean + 3 * se < 0, (mean, se)
 
 

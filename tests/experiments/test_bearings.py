@@ -12,18 +12,12 @@ import pytest
 from scipy.linalg import expm
 
 from vtrack.cli import main
-from vtrack.estimation.bounds import chi2_band
+from vtrack.estimation.bounds import chi2_band, paired_difference
 from vtrack.estimation.models import Bearings
 from vtrack.experiments import _bot as bot
 from vtrack.experiments.bearings import FILTERS, KINDS
 
 RUNS = 16
-
-
-def _diff(a, b):
-    """(mean, standard error) of the paired per-run differences a - b."""
-    d = np.asarray(a) - np.asarray(b)
-    return d.mean(), d.std(ddof=1) / np.sqrt(len(d))
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +89,9 @@ def test_batched_ekf_equals_the_core_ekf(two):
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_third_sensor_lowers_rmse(two, three, kind):
-    mean, se = _diff(_rmse(three, kind), _rmse(two, kind))
+    diff = paired_difference(_rmse(three, kind), _rmse(two, kind))
+    assert diff["runs"] == RUNS  # no run diverged
+    mean, se = diff["mean"], diff["se"]
     assert mean + 3 * se < 0, (mean, se)
     # and by a lot (SEEDS 2.5: ~45 %)
     assert np.mean(_rmse(three, kind)) < 0.75 * np.mean(_rmse(two, kind))
@@ -111,7 +107,9 @@ def test_sigma_point_filters_match_the_ekf(request, geometry, kind):
     better by more than 1 % (SEEDS 2.5: EKF ~ UKF ~ CKF within ~1 %)."""
     case = request.getfixturevalue(geometry)
     ekf = _rmse(case, "ekf")
-    mean, se = _diff(_rmse(case, kind), ekf)
+    diff = paired_difference(_rmse(case, kind), ekf)
+    assert diff["runs"] == RUNS  # no run diverged
+    mean, se = diff["mean"], diff["se"]
     assert mean - 3 * se <= 0.005 * ekf.mean(), (mean, se)
     assert mean + 3 * se >= -0.01 * ekf.mean(), (mean, se)
 

@@ -1,8 +1,6 @@
 """Seed 003 fuzzy-aided KFs (fuzzy-r, fuzzy-q) and the `fuzzy` experiment; SIIM FIS
 properties of seed 004 (SEEDS 8 item 7)."""
 
-import contextlib
-import io
 import itertools
 import json
 
@@ -176,18 +174,9 @@ def small_fuzzy(monkeypatch):
     monkeypatch.setattr(fz, "CASES", {"E3": fz.CASES["E3"]})
 
 
-def _cli_json(args):
-    from vtrack.cli import main
-
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
-        assert main(args) == 0
-    return buf.getvalue()
-
-
-def test_json_schema_and_determinism(small_fuzzy):
-    out1 = _cli_json(["experiment", "fuzzy", "--runs", "3", "--seed", "4", "--json"])
-    out2 = _cli_json(["experiment", "fuzzy", "--runs", "3", "--seed", "4", "--json"])
+def test_json_schema_and_determinism(small_fuzzy, cli_stdout):
+    out1 = cli_stdout(["experiment", "fuzzy", "--runs", "3", "--seed", "4", "--json"])
+    out2 = cli_stdout(["experiment", "fuzzy", "--runs", "3", "--seed", "4", "--json"])
     assert out1 == out2
     data = json.loads(out1)
     assert set(data["results"]) == {"kf", "fuzzy-r", "fuzzy-q"}
@@ -197,5 +186,5 @@ def test_json_schema_and_determinism(small_fuzzy):
         for axis in "xyz":
             assert entry[f"rmse_{axis}"] > 0
     assert "paper" in data["results"]["fuzzy-r"]
-    out3 = _cli_json(["experiment", "fuzzy", "--runs", "3", "--seed", "5", "--json"])
+    out3 = cli_stdout(["experiment", "fuzzy", "--runs", "3", "--seed", "5", "--json"])
     assert out3 != out1

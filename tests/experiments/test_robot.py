@@ -1,7 +1,5 @@
 """Seed 002 robot experiment: UKF, SR-UKF and the paper's cube-root variant (crukf)."""
 
-import contextlib
-import io
 import json
 from dataclasses import replace
 
@@ -86,18 +84,9 @@ def small_robot(monkeypatch):
                             "small", True)})
 
 
-def _cli_json(args):
-    from vtrack.cli import main
-
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
-        assert main(args) == 0
-    return buf.getvalue()
-
-
-def test_json_schema_and_determinism(small_robot):
-    out1 = _cli_json(["experiment", "robot", "--runs", "2", "--seed", "3", "--json"])
-    out2 = _cli_json(["experiment", "robot", "--runs", "2", "--seed", "3", "--json"])
+def test_json_schema_and_determinism(small_robot, cli_stdout):
+    out1 = cli_stdout(["experiment", "robot", "--runs", "2", "--seed", "3", "--json"])
+    out2 = cli_stdout(["experiment", "robot", "--runs", "2", "--seed", "3", "--json"])
     assert out1 == out2
     data = json.loads(out1)
     assert set(data["results"]) == {"ukf", "srukf", "crukf"}

@@ -1,7 +1,5 @@
 """Seed 004: SIIM fuzzy EKF and the `siim` experiment (EKF vs PCRLB, scenario 2, JSON)."""
 
-import contextlib
-import io
 import json
 
 import numpy as np
@@ -79,21 +77,12 @@ def test_siim_adaptation_direction_and_clamps():
     assert np.all(np.isfinite(f.x))
 
 
-def _cli_json(args):
-    from vtrack.cli import main
-
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
-        assert main(args) == 0
-    return buf.getvalue()
-
-
-def test_json_schema_and_determinism(monkeypatch):
+def test_json_schema_and_determinism(monkeypatch, cli_stdout):
     monkeypatch.setattr(si, "GAMMA_SWEEP", (1e-2,))
     original = si.Scenario2
     monkeypatch.setattr(si, "Scenario2", lambda: original(samples=60))
-    out1 = _cli_json(["experiment", "siim", "--runs", "20", "--seed", "1", "--json"])
-    out2 = _cli_json(["experiment", "siim", "--runs", "20", "--seed", "1", "--json"])
+    out1 = cli_stdout(["experiment", "siim", "--runs", "20", "--seed", "1", "--json"])
+    out2 = cli_stdout(["experiment", "siim", "--runs", "20", "--seed", "1", "--json"])
     assert out1 == out2
     data = json.loads(out1)
     assert set(data["results"]) == {"ekf", "siim-ekf"}

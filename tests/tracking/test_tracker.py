@@ -16,25 +16,30 @@ class Row:
         self.frame, self.id, self.box, self.conf = int(frame), int(tid), np.array([x, y, w, h]), conf
 
 
-def _run(paths, gaps=(), frames=300, cfg=None, noise=1.0, seed=0):
-    """paths: list of f(t) -> (x, y) or None; gaps: frames where no detection is produced."""
+def _run_boxes(boxes_at, frames, cfg=None, noise=0.5, seed=0):
+    """boxes_at(t) -> list of (x, y, w, h) detections; returns the FrameTracks per frame."""
     rng = np.random.default_rng(seed)
     tr = Tracker(cfg or TrackerConfig(), W, H)
-    rows, states = [], []
+    out = []
     for n in range(1, frames + 1):
         t = (n - 1) / FPS
-        c, b = [], []
-        for f in paths:
-            p = f(t)
-            if p is None or n in gaps:
-                continue
-            p = np.asarray(p) + rng.normal(0, noise, 2)
-            c.append(p)
-            b.append([p[0] - 20, p[1] - 10, 40, 20])
-        ft = tr.step(n, t, np.array(c).reshape(-1, 2), np.array(b).reshape(-1, 4))
-        rows.extend(Row(*r) for r in ft.rows)
-        states.append(ft)
-    return rows, states
+        b = np.array(boxes_at(t), dtype=float).reshape(-1, 4)
+        b[:, :2] += rng.normal(0, noise, (len(b), 2))
+        out.append(tr.step(n, t, b[:, :2] + b[:, 2:] / 2, b))
+    return out
+
+
+def _run(paths, gaps=(), frames=300, cfg=None, noise=1.0, seed=0):
+    """paths: list of f(t) -> (x, y) or None (40 x 20 boxes centred there); gaps: frames
+    where no detection is produced. Returns the rows and the FrameTracks per frame."""
+    def boxes_at(t):
+        if round(t * FPS) + 1 in gaps:
+            return []
+        centres = [p for f in paths if (p := f(t)) is not None]
+        return [(x - 20, y - 10, 40, 20) for x, y in centres]
+
+    states = _run_boxes(boxes_at, frames, cfg, noise, seed)
+    return [Row(*r) for s in states for r in s.rows], states
 
 
 def _accelerating(t):
@@ -156,19 +161,6 @@ def test_adaptive_kinds_as_the_per_vehicle_filter(kind):
 def test_unknown_per_vehicle_filter_is_rejected():
     with pytest.raises(ValueError, match="tracker.filter"):
         Tracker(TrackerConfig(filter="ukf"), W, H)
-
-
-def _run_boxes(boxes_at, frames, cfg=None, seed=0):
-    """boxes_at(t) -> list of (x, y, w, h) detections; returns the FrameTracks per frame."""
-    rng = np.random.default_rng(seed)
-    tr = Tracker(cfg or TrackerConfig(), W, H)
-    out = []
-    for n in range(1, frames + 1):
-        t = (n - 1) / FPS
-        b = np.array(boxes_at(t), dtype=float).reshape(-1, 4)
-        b[:, :2] += rng.normal(0, 0.5, (len(b), 2))
-        out.append(tr.step(n, t, b[:, :2] + b[:, 2:] / 2, b))
-    return out
 
 
 def _side_by_side(t):

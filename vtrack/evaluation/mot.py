@@ -21,6 +21,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from vtrack.errors import InputError
+from vtrack.fileio import open_input
 
 MIN_VISIBILITY = 0.3
 MATCH_IOU = 0.5
@@ -59,12 +60,9 @@ def read_mot(path: str | os.PathLike, min_cols: int = 10, max_cols: int = 11) ->
 
 
 def _read_lines(path: Path) -> list[str]:
-    if not path.exists():
-        raise InputError(f"{path}: no such file")
-    if not path.is_file():
-        raise InputError(f"{path}: not a file")
     try:
-        return path.read_text(encoding="utf-8").splitlines()
+        with open_input(path, "CSV file", encoding="utf-8") as fh:
+            return fh.read().splitlines()
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a UTF-8 text file") from None
     except OSError as exc:

@@ -151,7 +151,6 @@ class Tracker:
         self.uid = np.zeros(n, dtype=int)
         self.gap_p = np.full((n, 2), np.nan)  # where the gap between two pieces was first seen
         self.gap_t = np.full(n, np.nan)       # and when (nan: the track's box holds one piece)
-        self.split = np.zeros(n, dtype=bool)  # its box held several vehicles this frame
         # Rows not yet final, by uid (_emit); a tentative track that never moves keeps only
         # its latest rows, so static clutter cannot grow memory without bound.
         self.pending: dict[int, deque[np.ndarray]] = {}
@@ -163,7 +162,7 @@ class Tracker:
     _KILLED = 1 << 40  # misses value that marks a duplicate track for deletion
     _MAX_PENDING = 4096  # rows kept for a track not yet confirmed (see pending)
     _arrays = ("x", "P", "size", "origin", "hist_p", "hist_t", "hist_s", "count", "hitmask",
-               "misses", "id", "uid", "gap_p", "gap_t", "split")
+               "misses", "id", "uid", "gap_p", "gap_t")
 
     def _keep(self, keep: np.ndarray) -> None:
         if self.filters is not None:
@@ -206,7 +205,7 @@ class Tracker:
                     f.predict(dt)
                     self.x[i], self.P[i] = f.x, f.P
 
-        centers, boxes = self._merge_fragments(t, centers, boxes)
+        centers, boxes, split = self._merge_fragments(t, centers, boxes)
         # Gate and assign on the predicted position.
         ti, di, cost = gated_pairs(
             self.x[:, :2], self.P[:, :2, :2], centers, self.gate, cfg.max_gate_px,
@@ -215,7 +214,7 @@ class Tracker:
         mt, md, consumed = self._resolve_shared(mt, md, boxes)
         mt, md = self._reacquire(mt, md, consumed, centers)
 
-        self._update(mt, boxes[md], t)
+        self._update(mt, boxes[md], t, split[mt])
         hit = np.zeros(len(self), dtype=bool)
         hit[mt] = True
         self.hitmask = ((self.hitmask << 1) | hit) & ((1 << cfg.confirm_window) - 1)
@@ -242,7 +241,7 @@ class Tracker:
                            rows=rows, detection_of=det_of[conf])
 
     def _merge_fragments(self, t: float, centers: np.ndarray, boxes: np.ndarray
-                         ) -> tuple[np.ndarray, np.ndarray]:
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Detections whose centres all fall inside one confirmed track's predicted box (and in
         no other) are pieces of one vehicle cut by an occluder, or several vehicles the track
         has followed as one blob (a queue far from the camera) that have now come apart.
@@ -251,10 +250,11 @@ class Tracker:
         the gap stays where it first appeared while the vehicle moves on; the gap between two
         vehicles moves with them. Once the track has moved `split_evidence_px` since the
         pieces appeared, a gap that followed it by half that or more marks the track as
-        `split` (its box then shrinks to the piece it takes, freeing the others to start
+        split (its box then shrinks to the piece it takes, freeing the others to start
         tracks); until then, and for a static gap, the pieces are joined into their union.
-        Pieces spanning more than 1.2 times the track's box are separate vehicles at once."""
-        self.split = np.zeros(len(self), dtype=bool)
+        Pieces spanning more than 1.2 times the track's box are separate vehicles at once.
+        Returns the detections and which tracks were split."""
+        split = np.zeros(len(self), dtype=bool)
         conf = np.flatnonzero(self.id > 0)
         held = np.zeros(len(self), dtype=bool)
         if len(conf) and len(centers) >= 2:
@@ -272,14 +272,14 @@ class Tracker:
                 x1 = (boxes[parts, :2] + boxes[parts, 2:]).max(axis=0)
                 apart = np.any(x1 - x0 > 1.2 * self.size[track])
                 if apart or self._gap_moved(track, t, boxes[parts]):
-                    self.split[track] = True
+                    split[track] = True
                     continue
                 boxes[parts[0]] = [*x0, *(x1 - x0)]
                 keep[parts[1:]] = False
             boxes = boxes[keep]
             centers = boxes[:, :2] + boxes[:, 2:] / 2
-        self.gap_t[~held | self.split] = np.nan
-        return centers, boxes
+        self.gap_t[~held | split] = np.nan
+        return centers, boxes, split
 
     def _gap_moved(self, track: int, t: float, pieces: np.ndarray) -> bool:
         """Whether the gap between the two largest `pieces` (x, y, w, h) has moved with the
@@ -354,8 +354,9 @@ class Tracker:
                 consumed.append(int(d))
         return mt, md, np.array(consumed, dtype=int)
 
-    def _update(self, mt: np.ndarray, boxes: np.ndarray, t: float) -> None:
-        """Update tracks `mt` with their detected boxes at time t (seed 001 eqs. 24-26)."""
+    def _update(self, mt: np.ndarray, boxes: np.ndarray, t: float, split: np.ndarray) -> None:
+        """Update tracks `mt` with their detected boxes at time t (seed 001 eqs. 24-26);
+        `split` marks those whose box held several vehicles (see _merge_fragments)."""
         cfg = self.cfg
         self._last_innov = np.zeros(len(mt))
         if len(mt) == 0:
@@ -381,15 +382,15 @@ class Tracker:
         size = self.size[mt]
         grow = boxes[:, 2:] > size
         a = np.where(grow, cfg.size_smoothing, cfg.size_shrink)
-        a = np.where(self.split[mt, None], 1.0, a)  # its other vehicles are not its size
         new = a * boxes[:, 2:] + (1 - a) * size
         # A blob that suddenly outgrows the vehicle is usually several vehicles merged: cap
         # the growth per frame (a vehicle coming into view at the border grows by about its
         # displacement per frame).
         dt = np.maximum(self.hist_t[mt, 0] - self.hist_t[mt, 1], 0.0)
         step = np.abs(self.x[mt, 2:4]) * np.where(self.count[mt] >= 2, dt, 0.0)[:, None]
-        self.size[mt] = np.where(self.split[mt, None], new,
-                                 np.minimum(new, size * (1 + cfg.max_size_growth) + step + 2.0))
+        capped = np.minimum(new, size * (1 + cfg.max_size_growth) + step + 2.0)
+        # A split track's other vehicles are not its size: it takes its piece's at once.
+        self.size[mt] = np.where(split[:, None], boxes[:, 2:], capped)
 
     def _nested_centre(self, tracks: np.ndarray, boxes: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -447,7 +448,7 @@ class Tracker:
                      hist_p=hist_p, hist_t=hist_t, hist_s=hist_s, count=np.ones(k, dtype=int),
                      hitmask=np.ones(k, dtype=np.int64), misses=np.zeros(k, dtype=int),
                      id=np.zeros(k, dtype=int), uid=uid, gap_p=np.full((k, 2), np.nan),
-                     gap_t=np.full(k, np.nan), split=np.zeros(k, dtype=bool))
+                     gap_t=np.full(k, np.nan))
         return k
 
     def _fate(self) -> tuple[np.ndarray, np.ndarray]:
