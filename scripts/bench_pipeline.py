@@ -12,9 +12,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from vtrack import config
+from vtrack.app import config
 from vtrack.sim.traffic import render_scene
-from vtrack.tracking.pipeline import TrackOptions, track_video
+from vtrack.app.track import TrackOptions, track_video
 from vtrack.vision.video import VideoReader
 
 

@@ -113,7 +113,7 @@ def run_batch(inputs: list[str], out: str | os.PathLike, cfg: Any = None, *,
     Raises InputError before any work for bad inputs/options/missing extras;
     KeyboardInterrupt after batch.csv has been brought up to date.
     """
-    from vtrack.config import AppConfig
+    from vtrack.app.config import AppConfig
 
     started = time.perf_counter()
     if engine not in ENGINES:

@@ -28,7 +28,7 @@ class VideoTask:
     video_abs: str             # absolute path the worker opens
     out: str                   # output folder as named to the user (batch.csv's `out`)
     out_abs: str               # absolute output folder the worker writes
-    cfg: Any                   # vtrack.config.AppConfig
+    cfg: Any                   # vtrack.app.config.AppConfig
     save_frames: bool = False
     save_video: bool = False
     rerun: bool = False        # write out/tracks.rrd
@@ -98,7 +98,7 @@ def _process(task: VideoTask) -> dict:
         import cv2
 
         from vtrack.errors import InputError
-        from vtrack.tracking.pipeline import TrackOptions, track_video
+        from vtrack.app.track import TrackOptions, track_video
 
         if task.cv_threads > 0:
             cv2.setNumThreads(task.cv_threads)

@@ -50,7 +50,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from vtrack import config
+    from vtrack.app import config
     from vtrack.batch.runner import run_batch
     from vtrack.commands.track import parse_count_line
 

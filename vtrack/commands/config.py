@@ -14,7 +14,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from vtrack import config
+    from vtrack.app import config
 
     if args.check:
         cfg = config.load(args.check)

@@ -17,7 +17,7 @@ def parse_count_line(text: str) -> list[float]:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         raise InputError(f"--count-line {text!r}: expected X1,Y1,X2,Y2 (numbers)") from None
-    from vtrack.config import parse_line
+    from vtrack.app.config import parse_line
 
     return parse_line(f"--count-line {text!r}", values)
 
@@ -38,8 +38,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from vtrack import config
-    from vtrack.tracking.pipeline import TrackOptions, track_video
+    from vtrack.app import config
+    from vtrack.app.track import TrackOptions, track_video
 
     if args.max_frames is not None and args.max_frames < 1:
         raise InputError("--max-frames must be a positive integer")

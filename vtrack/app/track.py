@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from vtrack import __version__
-from vtrack.config import AppConfig
+from vtrack.app.config import AppConfig
 from vtrack.fileio import replace_dir, write_csv, write_json
-from vtrack.tracking.counting import LineCounter
+from vtrack.analytics.lines import LineCounter
 from vtrack.tracking.tracker import FrameTracks, Tracker
 
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from vtrack.tracking.counting import LineCounter
+from vtrack.analytics.lines import LineCounter
 
 
 def _feed(counter, tid, pts, start=1):

@@ -1,0 +1,1 @@
+"""Traffic analytics on confirmed tracks: counting lines, zones, calibration, time bins."""

@@ -1,0 +1,1 @@
+"""Applications that wire the layers together: the track pipeline and its config."""
