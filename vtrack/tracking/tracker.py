@@ -122,6 +122,7 @@ class FrameTracks:
     innovations: np.ndarray    # (K,) |position innovation| in px (nan when coasted)
     rows: np.ndarray           # (R, 7) ROW_COLUMNS to write (incl. rows back-filled later)
     detection_of: np.ndarray   # (K,) index of the detection used (-1 when coasted)
+    size_rates: np.ndarray     # (K, 2) d(w, h)/dt of the box, px/s (0 while size is not filtered)
 
 
 class Tracker:
@@ -238,7 +239,8 @@ class Tracker:
         return FrameTracks(ids=self.id[conf].copy(), boxes=self.boxes()[conf],
                            coasted=~hit[conf], states=self.x[conf].copy(),
                            covariances=self.P[conf].copy(), innovations=innov[conf],
-                           rows=rows, detection_of=det_of[conf])
+                           rows=rows, detection_of=det_of[conf],
+                           size_rates=np.zeros((int(conf.sum()), 2)))
 
     def _merge_fragments(self, t: float, centers: np.ndarray, boxes: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
