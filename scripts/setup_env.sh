@@ -10,11 +10,14 @@ if [ ! -x .venv/bin/python ]; then
 fi
 stamp=.venv/.vtrack-installed
 want=$(sha256sum pyproject.toml | cut -d' ' -f1)
-if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ] || ! .venv/bin/python -c "import vtrack, trackeval" >/dev/null 2>&1; then
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ] || ! .venv/bin/python -c "import vtrack, trackeval, trackers" >/dev/null 2>&1; then
   .venv/bin/python -m pip install --quiet --upgrade pip
   .venv/bin/python -m pip install --quiet -e ".[all,test]"
   # trackeval 1.3.0 hard-depends on opencv-python (clashes with the headless build) and
   # pycocotools; its MOTChallenge path needs neither, so it is installed without them.
   .venv/bin/python -m pip install --quiet --no-deps "trackeval==1.3.0"
+  # The scene suite's peers (SORT, ByteTrack): same opencv-python clash, same remedy; their
+  # other dependencies are the `peer` extra.
+  .venv/bin/python -m pip install --quiet --no-deps "trackers==2.6.1" "supervision==0.31.2"
   echo "$want" > "$stamp"
 fi

@@ -92,6 +92,22 @@ def test_outputs_follow_the_interface(synth_video, tmp_path):
     assert not (tmp_path / "frames").exists()
 
 
+def test_save_detections_writes_the_detector_boxes(synth_video, tmp_path):
+    """--save-detections: MOT detection rows of every frame; each detected track row lies
+    on one of its frame's detections (the peers of scripts/eval_suite.py track these)."""
+    src = synth_video(0)
+    _track(src / "video.avi", tmp_path, "--max-frames", "80", "--save-detections")
+    dets = np.loadtxt(tmp_path / "detections.csv", delimiter=",", ndmin=2)
+    rows = read_mot(tmp_path / "tracks.csv")
+    assert len(dets) > 0 and np.all(dets[:, 1] == -1) and np.all(dets[:, 4:6] > 0)
+    assert 1 <= dets[:, 0].min() and dets[:, 0].max() <= 80
+    detected = rows[rows[:, 6] == 1.0]
+    assert len(detected) > 0
+    for r in detected:
+        same = dets[dets[:, 0] == r[0]]
+        assert len(same) and box_iou(r[None, 2:6], same[:, 2:6]).max() > 0
+
+
 @pytest.mark.parametrize("clip,lines,expected", [
     ("highway", (0.6, 0.8), 27),
     ("residential", (0.6,), 3),

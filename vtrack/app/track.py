@@ -30,6 +30,7 @@ class TrackOptions:
     rerun_spawn: bool = False         # also stream to a live viewer
     max_frames: int | None = None
     progress: bool = False
+    save_detections: bool = False     # also write detections.csv (the detector's boxes)
 
 
 @dataclass
@@ -38,6 +39,7 @@ class _Outputs:
 
     rows: list[np.ndarray] = field(default_factory=list)   # (R, 7) blocks of ROW_COLUMNS
     times: list[float] = field(default_factory=list)
+    detections: list[np.ndarray] = field(default_factory=list)  # (D, 5) frame, x, y, w, h
 
 
 def _center(box: list[float]) -> np.ndarray:
@@ -84,6 +86,9 @@ class TrackJob:
                 self.frames = frame.index
                 self.acc.times.append(frame.time)
                 self._record(ft)
+                if self.opts.save_detections:
+                    self.acc.detections.append(np.column_stack(
+                        [np.full(len(dets), frame.index), dets.boxes]))
                 if self.opts.save_frames or writer is not None:
                     self._annotate(frame, ft, dets, writer)
                 if logger is not None:
@@ -176,6 +181,11 @@ class TrackJob:
                   ([c.frame, f"{c.time:.4f}", c.id, c.line, c.direction]
                    for c in self.counter.crossings),
                   header=["frame", "time_s", "id", "line", "direction"])
+        if self.opts.save_detections:
+            dets = (np.concatenate(self.acc.detections) if self.acc.detections
+                    else np.zeros((0, 5)))
+            write_csv(self.out / "detections.csv", (
+                [int(d[0]), -1, *(f"{v:.2f}" for v in d[1:5]), 1, -1, -1, -1] for d in dets))
         summary = {
             "video": str(self.video),
             "frames": self.frames,

@@ -33,6 +33,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also stream to a live rerun viewer (desktop)")
     p.add_argument("--max-frames", type=int, metavar="N", help="stop after N frames")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
+    p.add_argument("--save-detections", action="store_true",
+                   help="also write detections.csv: the detector's boxes per frame "
+                        "(MOTChallenge detection rows frame,-1,x,y,w,h,1,-1,-1,-1)")
     p.add_argument("--count-line", action="append", default=[], metavar="X1,Y1,X2,Y2",
                    help="counting line in pixels (repeatable)")
 
@@ -48,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / Path(args.video).stem
     opts = TrackOptions(save_frames=args.save_frames, save_video=args.save_video,
                         rerun=args.rerun, rerun_spawn=args.rerun_spawn,
-                        max_frames=args.max_frames,
+                        max_frames=args.max_frames, save_detections=args.save_detections,
                         progress=not args.quiet and sys.stdout.isatty())
     summary = track_video(args.video, out, cfg, opts)
     if not args.quiet:

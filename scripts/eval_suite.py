@@ -1,0 +1,370 @@
+#!/usr/bin/env python3
+"""The scene suite: the instrument every tracker change is judged on.
+
+Runs, with the DEFAULT configuration (or --config), every synthetic scene preset of
+`vtrack synth` with several seeds plus every real clip of ../shared/videos/handcounts.json
+with its counting line, through `vtrack track`; then runs two peers, SORT and ByteTrack from
+the `trackers` package (Roboflow), on exactly the MOG2 detections vtrack's detector produced
+for that clip (`vtrack track --save-detections`), counted with the same line rule. Prints one
+table: per synthetic clip MOTA, IDF1, HOTA, ID switches, FP, FN per tracker; per real clip
+and line the counts beside the hand range; the mean and the worst per column.
+
+    .venv/bin/python scripts/eval_suite.py                 # the whole suite, 2 workers
+    .venv/bin/python scripts/eval_suite.py --json suite.json
+    .venv/bin/python scripts/eval_suite.py --quick         # one short clip per preset, 2 real
+
+Rendered synthetic clips are cached (keyed by the simulator's source and the options) under
+--cache, so re-running after a tracker change only tracks. Peers need the `peer` extra
+(scripts/setup_env.sh installs it); --no-peers skips them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+VIDEOS = ROOT.parent / "shared" / "videos"
+SCENES = ("overhead", "mast", "side", "junction")
+PEERS = ("sort", "bytetrack")
+METRICS = ("mota", "idf1", "hota", "id_switches", "false_positives", "misses")
+HIGHER_IS_BETTER = {"mota", "idf1", "hota"}
+
+
+@dataclass(frozen=True)
+class SynthClip:
+    scene: str
+    seed: int
+    frames: int = 300
+    width: int = 640
+    height: int = 360
+
+    @property
+    def name(self) -> str:
+        size = "" if (self.width, self.height) == (640, 360) else f"@{self.width}x{self.height}"
+        return f"{self.scene}-{self.seed}{size}"
+
+
+@dataclass(frozen=True)
+class RealClip:
+    file: str
+    lines: tuple[tuple[float, tuple[int, int], tuple[int, int]], ...]  # y_frac, fwd, bwd
+
+    @property
+    def name(self) -> str:
+        return Path(self.file).stem
+
+
+@dataclass
+class Result:
+    clip: str
+    kind: str                                  # "synthetic" | "real"
+    seconds: float = 0.0
+    frames: int = 0
+    scores: dict[str, dict] = field(default_factory=dict)   # tracker -> metrics
+    counts: dict[str, list] = field(default_factory=dict)   # tracker -> [[fwd, bwd], ...]
+    hand: list = field(default_factory=list)                # [[y, [lo, hi], [lo, hi]], ...]
+    error: str = ""
+
+
+# ----------------------------------------------------------------------------- clips
+
+def synthetic_clips(scenes: list[str], seeds: list[int], frames: int, large: bool
+                    ) -> list[SynthClip]:
+    clips = [SynthClip(s, seed, frames) for s in scenes for seed in seeds]
+    if large and scenes:
+        big = "mast" if "mast" in scenes else scenes[0]
+        clips.append(SynthClip(big, seeds[0] + 100, frames, 1280, 720))
+    return clips
+
+
+def real_clips() -> list[RealClip]:
+    path = VIDEOS / "handcounts.json"
+    if not path.exists():
+        return []
+    by_file: dict[str, list] = {}
+    for c in json.loads(path.read_text())["clips"]:
+        by_file.setdefault(c["file"], []).append(
+            (c["y_fraction"], tuple(c["forward"]), tuple(c["backward"])))
+    return [RealClip(f, tuple(lines)) for f, lines in by_file.items()
+            if (VIDEOS / f).exists()]
+
+
+# ----------------------------------------------------------------------------- running
+
+def _vtrack(*args: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "vtrack", *args], capture_output=True,
+                          text=True, env=env, check=False)
+
+
+def _sim_digest() -> str:
+    h = hashlib.sha256()
+    for p in sorted((ROOT / "vtrack" / "sim").rglob("*.py")):
+        h.update(p.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def render(clip: SynthClip, cache: Path) -> Path:
+    """Render (or reuse) a synthetic clip; returns its folder."""
+    key = hashlib.sha256(f"{_sim_digest()}{asdict(clip)}".encode()).hexdigest()[:12]
+    out = cache / f"{clip.name}-{key}"
+    if (out / "gt.csv").exists() and (out / "video.avi").exists():
+        return out
+    args = ["synth", str(out), "--seed", str(clip.seed), "--frames", str(clip.frames),
+            "--width", str(clip.width), "--height", str(clip.height)]
+    if clip.scene != "overhead":
+        args += ["--scene", clip.scene]
+    res = _vtrack(*args)
+    if res.returncode != 0:
+        raise RuntimeError(f"synth {clip.name}: {res.stderr.strip()}")
+    return out
+
+
+def track(video: Path, out: Path, lines: list[list[float]], config: str | None) -> dict:
+    args = ["track", str(video), "--out", str(out), "--quiet", "--save-detections"]
+    for line in lines:
+        args += ["--count-line", ",".join(f"{v:g}" for v in line)]
+    if config:
+        args += ["--config", config]
+    res = _vtrack(*args)
+    if res.returncode != 0:
+        raise RuntimeError(f"track {video}: {res.stderr.strip()}")
+    return json.loads((out / "summary.json").read_text())
+
+
+def run_peer(name: str, detections: Path, fps: float, frames: int, out: Path) -> Path:
+    """Track vtrack's detections with a peer of the `trackers` package; writes MOT rows."""
+    import supervision as sv
+    from trackers import ByteTrackTracker, SORTTracker
+
+    tracker = (SORTTracker if name == "sort" else ByteTrackTracker)(frame_rate=fps)
+    dets = np.loadtxt(detections, delimiter=",", ndmin=2) if detections.stat().st_size else \
+        np.zeros((0, 10))
+    by_frame = {int(f): dets[dets[:, 0] == f] for f in np.unique(dets[:, 0])}
+    rows = []
+    for n in range(1, frames + 1):
+        d = by_frame.get(n, np.zeros((0, 10)))
+        xyxy = np.column_stack([d[:, 2], d[:, 3], d[:, 2] + d[:, 4], d[:, 3] + d[:, 5]])
+        result = tracker.update(sv.Detections(xyxy=xyxy.reshape(-1, 4).astype(float),
+                                              confidence=np.ones(len(d))))
+        for (x0, y0, x1, y1), tid in zip(result.xyxy, result.tracker_id, strict=True):
+            if tid is not None and tid >= 0:
+                rows.append((n, int(tid) + 1, x0, y0, x1 - x0, y1 - y0))
+    rows.sort(key=lambda r: (r[0], r[1]))
+    path = out / f"tracks_{name}.csv"
+    with path.open("w") as f:
+        for n, tid, x, y, w, h in rows:
+            if w > 0 and h > 0:
+                f.write(f"{n},{tid},{x:.2f},{y:.2f},{w:.2f},{h:.2f},1,-1,-1,-1\n")
+    return path
+
+
+def count(tracks: Path, lines: list[list[float]], fps: float) -> list[list[int]]:
+    """[forward, backward] per line by the rule of `vtrack track` (analytics.lines)."""
+    from vtrack.analytics.lines import LineCounter
+
+    counter = LineCounter(lines)
+    rows = np.loadtxt(tracks, delimiter=",", ndmin=2) if tracks.stat().st_size else \
+        np.zeros((0, 10))
+    for r in rows[np.lexsort((rows[:, 0], rows[:, 1]))]:
+        counter.add(int(r[1]), int(r[0]), r[0] / fps, r[2:4] + r[4:6] / 2)
+    return [[c["forward"], c["backward"]] for c in counter.counts()]
+
+
+def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | None,
+             peers: bool) -> Result:
+    from vtrack.evaluation.mot import evaluate
+
+    t0 = time.perf_counter()
+    synthetic = isinstance(clip, SynthClip)
+    res = Result(clip.name, "synthetic" if synthetic else "real")
+    try:
+        out = work / clip.name
+        if synthetic:
+            src = render(clip, cache)
+            video, lines = src / "video.avi", []
+        else:
+            video = VIDEOS / clip.file
+            import cv2
+
+            cap = cv2.VideoCapture(str(video))
+            w, h = cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
+            cap.release()
+            lines = [[0.0, y * h, w, y * h] for y, _, _ in clip.lines]
+            res.hand = [[y, list(f), list(b)] for y, f, b in clip.lines]
+        summary = track(video, out, lines, config)
+        res.frames = summary["frames"]
+        outputs = {"vtrack": out / "tracks.csv"}
+        if peers:
+            for name in PEERS:
+                outputs[name] = run_peer(name, out / "detections.csv", summary["fps_video"],
+                                         summary["frames"], out)
+        for name, path in outputs.items():
+            if synthetic:
+                s = evaluate(src / "gt.csv", path)
+                res.scores[name] = {k: s[k] for k in METRICS}
+            else:
+                res.counts[name] = count(path, lines, summary["fps_video"])
+    except Exception as exc:  # noqa: BLE001 - a failing clip is reported, the suite goes on
+        res.error = f"{type(exc).__name__}: {exc}"
+    res.seconds = time.perf_counter() - t0
+    return res
+
+
+# ----------------------------------------------------------------------------- report
+
+def count_error(c: int, lo: int, hi: int) -> int:
+    """Signed distance of a count from its hand range (0 inside)."""
+    return c - hi if c > hi else (c - lo if c < lo else 0)
+
+
+def summarise(results: list[Result], trackers: list[str]) -> dict:
+    out: dict[str, dict] = {}
+    synth = [r for r in results if r.kind == "synthetic" and not r.error]
+    real = [r for r in results if r.kind == "real" and not r.error]
+    for t in trackers:
+        s: dict = {}
+        for m in METRICS:
+            vals = [r.scores[t][m] for r in synth if t in r.scores]
+            if vals:
+                s[f"{m}_mean"] = float(np.mean(vals))
+                s[f"{m}_worst"] = float(min(vals) if m in HIGHER_IS_BETTER else max(vals))
+        errs = []
+        for r in real:
+            for (_, fwd, bwd), got in zip(r.hand, r.counts.get(t, []), strict=False):
+                for (lo, hi), c in zip((fwd, bwd), got, strict=True):
+                    errs.append((count_error(c, lo, hi), hi))
+        if errs:
+            e = np.array([abs(a) for a, _ in errs])
+            s["counts_in_range"] = int(np.sum(e == 0))
+            s["counts_within_1"] = int(np.sum(e <= 1))
+            s["counts_total"] = len(errs)
+            s["count_abs_error_sum"] = int(e.sum())
+            s["count_worst_relative"] = float(max(abs(a) / max(hi, 1) for a, hi in errs))
+        out[t] = s
+    return out
+
+
+def print_table(results: list[Result], trackers: list[str], summary: dict) -> None:
+    synth = [r for r in results if r.kind == "synthetic"]
+    if synth:
+        print(f"{'synthetic clip':<22}{'tracker':<11}{'MOTA':>7}{'IDF1':>7}{'HOTA':>7}"
+              f"{'IDsw':>6}{'FP':>6}{'FN':>6}")
+        for r in synth:
+            if r.error:
+                print(f"{r.clip:<22}error: {r.error}")
+                continue
+            for t in trackers:
+                s = r.scores.get(t)
+                if s:
+                    print(f"{r.clip if t == trackers[0] else '':<22}{t:<11}{s['mota']:7.3f}"
+                          f"{s['idf1']:7.3f}{s['hota']:7.3f}{s['id_switches']:6d}"
+                          f"{s['false_positives']:6d}{s['misses']:6d}")
+        for agg in ("mean", "worst"):
+            for t in trackers:
+                s = summary.get(t, {})
+                if "mota_mean" not in s:
+                    continue
+                v = [s[f"{m}_{agg}"] for m in METRICS]
+                print(f"{agg if t == trackers[0] else '':<22}{t:<11}{v[0]:7.3f}{v[1]:7.3f}"
+                      f"{v[2]:7.3f}{v[3]:6.0f}{v[4]:6.0f}{v[5]:6.0f}")
+        print()
+    real = [r for r in results if r.kind == "real"]
+    if real:
+        head = "".join(f"{t:>14}" for t in trackers)
+        print(f"{'real clip':<44}{'line':>6}{'dir':>5}{'hand':>8}{head}")
+        for r in real:
+            if r.error:
+                print(f"{r.clip:<44}error: {r.error}")
+                continue
+            for k, (y, fwd, bwd) in enumerate(r.hand):
+                for d, (lo, hi) in enumerate((fwd, bwd)):
+                    if hi == 0 and all(r.counts[t][k][d] == 0 for t in trackers):
+                        continue
+                    hand = f"{lo}" if lo == hi else f"{lo}-{hi}"
+                    cells = ""
+                    for t in trackers:
+                        c = r.counts[t][k][d]
+                        e = count_error(c, lo, hi)
+                        cells += f"{c:>9d}" + (f" ({e:+d})" if e else "     ")
+                    print(f"{r.clip[:43]:<44}{y:>6.2f}{'fwd' if d == 0 else 'bwd':>5}"
+                          f"{hand:>8}{cells}")
+        for t in trackers:
+            s = summary.get(t, {})
+            if "counts_total" in s:
+                print(f"{t}: {s['counts_in_range']}/{s['counts_total']} counts in the hand "
+                      f"range, {s['counts_within_1']} within 1, sum of errors "
+                      f"{s['count_abs_error_sum']}, worst {100 * s['count_worst_relative']:.0f} %")
+
+
+def _git_rev() -> str:
+    res = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                         capture_output=True, text=True, check=False)
+    dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "vtrack"],
+                           capture_output=True, text=True, check=False).stdout.strip()
+    return res.stdout.strip() + ("+dirty" if dirty else "")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenes", default=",".join(SCENES), help="presets, comma-separated")
+    ap.add_argument("--seeds", default="0,1,2", help="seeds per preset")
+    ap.add_argument("--frames", type=int, default=300, help="frames per synthetic clip")
+    ap.add_argument("--no-large", action="store_true", help="skip the 1280x720 clip")
+    ap.add_argument("--no-real", action="store_true", help="skip the real clips")
+    ap.add_argument("--no-peers", action="store_true", help="vtrack only")
+    ap.add_argument("--only", default="", help="run only clips whose name contains this")
+    ap.add_argument("--quick", action="store_true",
+                    help="one 150-frame clip per preset and two real clips")
+    ap.add_argument("--config", help="a TOML config instead of the defaults")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--work", default="/tmp/vtrack-suite/runs", help="run folders")
+    ap.add_argument("--cache", default="/tmp/vtrack-suite/cache", help="rendered clips")
+    ap.add_argument("--json", metavar="FILE", help="also write the results as JSON")
+    args = ap.parse_args(argv)
+
+    scenes = [s for s in args.scenes.split(",") if s]
+    seeds = [int(s) for s in args.seeds.split(",") if s]
+    clips: list[SynthClip | RealClip]
+    if args.quick:
+        clips = [SynthClip(s, seeds[0], 150) for s in scenes]
+        clips += [c for c in real_clips() if c.name.startswith(("bgslibrary", "mrc"))]
+    else:
+        clips = list(synthetic_clips(scenes, seeds, args.frames, not args.no_large))
+        clips += [] if args.no_real else real_clips()
+    clips = [c for c in clips if args.only in c.name]
+    trackers = ["vtrack"] + ([] if args.no_peers else list(PEERS))
+    work, cache = Path(args.work), Path(args.cache)
+    cache.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        futures = [pool.submit(run_clip, c, work, cache, args.config, not args.no_peers)
+                   for c in clips]
+        results = [f.result() for f in futures]
+    wall = time.perf_counter() - t0
+    summary = summarise(results, trackers)
+    print_table(results, trackers, summary)
+    print(f"\n{len(results)} clips in {wall:.0f} s wall ({args.workers} workers); "
+          f"vtrack {_git_rev()}, config {args.config or 'default'}")
+    if args.json:
+        Path(args.json).write_text(json.dumps({
+            "revision": _git_rev(), "config": args.config or "default",
+            "wall_seconds": wall, "summary": summary,
+            "results": [asdict(r) for r in results]}, indent=1))
+    return 1 if any(r.error for r in results) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
