@@ -216,7 +216,7 @@ def test_tentative_track_keeps_a_detection_that_jumps_inside_its_box():
         box = np.array([[x - 50, y - 20, 100, 40]])
         tr.step(n, t, box[:, :2] + box[:, 2:] / 2, box)
         assert len(tr) == 1
-    assert tr.misses[0] == 0
+    assert tr.tracks.misses[0] == 0
 
 
 def test_rows_of_a_vehicle_leaving_the_image_have_visible_boxes():

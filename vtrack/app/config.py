@@ -18,7 +18,7 @@ from typing import Any
 
 from vtrack.errors import InputError
 from vtrack.fileio import read_toml
-from vtrack.tracking.tracker import TrackerConfig
+from vtrack.tracking.config import TrackerConfig
 from vtrack.vision.detect import DetectorConfig
 
 

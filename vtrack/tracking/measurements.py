@@ -59,3 +59,24 @@ def finite_difference_measurement(points: np.ndarray, times: np.ndarray, count: 
     order = np.minimum(count, 1 if position_only else 3)[:, None]
     mask = rows < order
     return z, R, mask
+
+
+def nested_centre(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """A detected box as a measurement (z, var) of a track's centre (K, 2 each).
+
+    A detection smaller than the vehicle (partly hidden by an occluder or the image border)
+    or larger (merged with a shadow, a ghost or another vehicle) only says that the track's
+    box (predicted centre `pred`, size `size`) and the detected box are nested. Per axis that
+    puts the vehicle's centre in the interval between d0 + s/2 and d1 - s/2 (detection
+    [d0, d1], track box size s), of length |w_det - s|; for a detection of the vehicle's size
+    it is the detection's centre. z is the prediction clipped to that interval and its
+    variance is the detector's sigma^2 plus that of a uniform spread over the interval,
+    L^2 / 12.
+    """
+    half = size / 2
+    a = boxes[:, :2] + half
+    b = boxes[:, :2] + boxes[:, 2:] - half
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    z = np.clip(pred, lo, hi)
+    return z, sigma**2 + (hi - lo) ** 2 / 12.0

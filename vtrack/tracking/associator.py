@@ -1,0 +1,204 @@
+"""The associator: which detection updates which track, in four stages run in one order.
+
+1. fragments: detections that all lie in one confirmed track's predicted box are pieces of
+   one vehicle (joined) or several vehicles that came apart (the track is marked split);
+2. gate and assign: Mahalanobis gating on k-d-tree candidates, optimal assignment per
+   connected group (vtrack.tracking.association);
+3. shared blobs: a detection holding the predicted centres of several confirmed tracks is a
+   duplicate (the younger tracks are deleted) or a merge (the tracks coast);
+4. re-acquisition: a track left without a detection takes a left-over one inside its box.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vtrack.tracking.association import assign, gated_pairs, nearest_pairs
+from vtrack.tracking.config import TrackerConfig
+from vtrack.tracking.measurements import nested_centre
+from vtrack.tracking.table import TrackTable
+
+
+@dataclass
+class Association:
+    """The outcome of one frame's association."""
+
+    centers: np.ndarray      # (D, 2) detections after joining fragments
+    boxes: np.ndarray        # (D, 4)
+    tracks: np.ndarray       # (K,) track indices ...
+    detections: np.ndarray   # (K,) ... and the detection each takes
+    consumed: np.ndarray     # detections that are merged blobs (they start no track)
+    split: np.ndarray        # (N,) tracks whose box held several vehicles
+    duplicates: np.ndarray   # tracks following the same vehicle as an older track
+
+
+class Associator:
+    """Runs the association stages for one frame (see the module docstring)."""
+
+    def __init__(self, cfg: TrackerConfig, width: int, height: int) -> None:
+        self.cfg = cfg
+        self.width, self.height = width, height
+        self.gate = -2.0 * math.log1p(-cfg.gate_probability)  # chi-square quantile, 2 dof
+
+    def associate(self, tracks: TrackTable, t: float, centers: np.ndarray, boxes: np.ndarray
+                  ) -> Association:
+        """Pair this frame's detections with the predicted tracks."""
+        cfg = self.cfg
+        track_boxes = tracks.boxes(self.width, self.height)
+        centers, boxes, split = self._join_fragments(tracks, track_boxes, t, centers, boxes)
+        ti, di, cost = gated_pairs(
+            tracks.x[:, :2], tracks.P[:, :2, :2], centers, self.gate, cfg.max_gate_px,
+            lambda trk, det: nested_centre(tracks.x[trk, :2], tracks.size[trk], boxes[det],
+                                           cfg.detection_sigma))
+        mt, md = assign(ti, di, cost, len(tracks), len(centers))
+        mt, md, consumed, duplicates = _resolve_shared(tracks, track_boxes, mt, md, boxes)
+        mt, md = _reacquire(tracks, track_boxes, mt, md, consumed, duplicates, centers)
+        return Association(centers, boxes, mt, md, consumed, split, duplicates)
+
+    def _join_fragments(self, tracks: TrackTable, track_boxes: np.ndarray, t: float,
+                        centers: np.ndarray, boxes: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Detections whose centres all fall inside one confirmed track's predicted box (and
+        in no other) are pieces of one vehicle cut by an occluder, or several vehicles the
+        track has followed as one blob (a queue far from the camera) that have now come apart.
+
+        The gap between the two largest pieces tells them apart: an occluder is static, so
+        the gap stays where it first appeared while the vehicle moves on; the gap between two
+        vehicles moves with them. Once the track has moved `split_evidence_px` since the
+        pieces appeared, a gap that followed it by half that or more marks the track as
+        split (its box then shrinks to the piece it takes, freeing the others to start
+        tracks); until then, and for a static gap, the pieces are joined into their union.
+        Pieces spanning more than 1.2 times the track's box are separate vehicles at once.
+        Returns the detections and which tracks were split; records the gaps in the table.
+        """
+        split = np.zeros(len(tracks), dtype=bool)
+        conf = tracks.confirmed
+        held = np.zeros(len(tracks), dtype=bool)
+        if len(conf) and len(centers) >= 2:
+            bi, di = points_in_boxes(centers, track_boxes[conf])
+            claims = np.bincount(di, minlength=len(centers))
+            ok = claims[di] == 1
+            bi, di = bi[ok], di[ok]
+            per_box = np.bincount(bi, minlength=len(conf))
+            keep = np.ones(len(centers), dtype=bool)
+            boxes = boxes.copy()
+            for b in np.flatnonzero(per_box >= 2):
+                track, parts = conf[b], di[bi == b]
+                held[track] = True
+                x0 = boxes[parts, :2].min(axis=0)
+                x1 = (boxes[parts, :2] + boxes[parts, 2:]).max(axis=0)
+                apart = np.any(x1 - x0 > 1.2 * tracks.size[track])
+                if apart or self._gap_moved(tracks, track, t, boxes[parts]):
+                    split[track] = True
+                    continue
+                boxes[parts[0]] = [*x0, *(x1 - x0)]
+                keep[parts[1:]] = False
+            boxes = boxes[keep]
+            centers = boxes[:, :2] + boxes[:, 2:] / 2
+        tracks.gap_t[~held | split] = np.nan
+        return centers, boxes, split
+
+    def _gap_moved(self, tracks: TrackTable, track: int, t: float, pieces: np.ndarray
+                   ) -> bool:
+        """Whether the gap between the two largest `pieces` (x, y, w, h) has moved with the
+        track since it first appeared (see _join_fragments); records it when it is new."""
+        a, b = pieces[np.argsort(pieces[:, 2] * pieces[:, 3])[-2:]]
+        lo = np.minimum(a[:2] + a[2:], b[:2] + b[2:])   # per axis: the facing edges when the
+        hi = np.maximum(a[:2], b[:2])                   # pieces are apart, else their overlap
+        gap = (lo + hi) / 2
+        if np.isnan(tracks.gap_t[track]):
+            tracks.gap_p[track], tracks.gap_t[track] = gap, t
+            return False
+        travelled = np.hypot(*tracks.x[track, 2:4]) * (t - tracks.gap_t[track])
+        if travelled < self.cfg.split_evidence_px:
+            return False
+        return bool(np.hypot(*(gap - tracks.gap_p[track])) >= 0.5 * travelled)
+
+
+def _resolve_shared(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray,
+                    md: np.ndarray, boxes: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Detections whose box holds the predicted centres of two or more confirmed tracks.
+
+    If those tracks' boxes largely overlap (the intersection covers over half of the smaller
+    box), they follow one vehicle: the oldest track takes the detection and the younger ones
+    are duplicates. Otherwise the detection is a merged blob of several vehicles: its
+    centroid belongs to none of them, so those tracks coast instead of being pulled toward
+    the middle, and the blob is consumed (it starts no track).
+    Returns the pairs, the consumed detections and the duplicate tracks.
+    """
+    consumed: list[int] = []
+    duplicates: list[np.ndarray] = []
+    conf = tracks.confirmed
+    none = np.zeros(0, dtype=int)
+    if len(boxes) == 0 or len(conf) < 2:
+        return mt, md, none, none
+    bi, pi = points_in_boxes(tracks.x[conf, :2], boxes)
+    # A track whose centre lies in more than one detection box has a detection of its own.
+    alone = np.bincount(pi, minlength=len(conf))[pi] == 1
+    bi, pi = bi[alone], pi[alone]
+    for d in np.flatnonzero(np.bincount(bi, minlength=len(boxes)) >= 2):
+        held = conf[pi[bi == d]]
+        taken = np.isin(mt, held) | (md == d)
+        mt, md = mt[~taken], md[~taken]
+        oldest = held[np.argmin(tracks.uid[held])]
+        others = held[held != oldest]
+        if np.all(overlap_of_smaller(track_boxes[oldest], track_boxes[others]) > 0.5):
+            mt, md = np.append(mt, oldest), np.append(md, d)
+            duplicates.append(others)
+        else:
+            consumed.append(int(d))
+    dup = np.concatenate(duplicates) if duplicates else none
+    return mt, md, np.array(consumed, dtype=int), dup
+
+
+def _reacquire(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray, md: np.ndarray,
+               consumed: np.ndarray, duplicates: np.ndarray, centers: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """A track left without a detection takes a left-over detection whose centre lies
+    inside its predicted box (nearest first).
+
+    A track that coasted on a prediction spoilt by partial detections (an occluder) can
+    drift out of its own gate while its vehicle is plainly inside its box; without this stage
+    the detection could neither update the track nor start a new one. A tentative track
+    takes part too: when the visible part of a vehicle jumps (entering behind an occluder),
+    a second track on the same vehicle would otherwise start beside it."""
+    waiting = ~tracks.killed
+    waiting[duplicates] = False
+    waiting[mt] = False
+    lost = np.flatnonzero(waiting)
+    if len(lost) == 0:
+        return mt, md
+    free = np.setdiff1d(np.arange(len(centers)), np.concatenate([md, consumed]))
+    if len(free) == 0:
+        return mt, md
+    bi, pi = points_in_boxes(centers[free], track_boxes[lost])
+    if len(bi) == 0:
+        return mt, md
+    dist = np.linalg.norm(centers[free[pi]] - tracks.x[lost[bi], :2], axis=1)
+    rt, rd = assign(bi, pi, dist, len(lost), len(free))
+    return np.concatenate([mt, lost[rt]]), np.concatenate([md, free[rd]])
+
+
+def overlap_of_smaller(box: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Intersection area of `box` with each of `others` over the smaller of the two areas."""
+    x0 = np.maximum(box[0], others[:, 0])
+    y0 = np.maximum(box[1], others[:, 1])
+    x1 = np.minimum(box[0] + box[2], others[:, 0] + others[:, 2])
+    y1 = np.minimum(box[1] + box[3], others[:, 1] + others[:, 3])
+    inter = np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None)
+    smaller = np.minimum(box[2] * box[3], others[:, 2] * others[:, 3])
+    return inter / np.maximum(smaller, 1e-9)
+
+
+def points_in_boxes(points: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(box, point) index pairs with the point inside the box (x, y, w, h), among each box's 8
+    nearest points (a box holds a few vehicle centres at most)."""
+    centre = boxes[:, :2] + boxes[:, 2:] / 2
+    radius = float(np.hypot(boxes[:, 2], boxes[:, 3]).max()) / 2 + 1e-9 if len(boxes) else 0.0
+    bi, pi = nearest_pairs(centre, points, radius)
+    inside = np.all(np.abs(points[pi] - centre[bi]) <= boxes[bi, 2:] / 2, axis=1)
+    return bi[inside], pi[inside]

@@ -1,0 +1,64 @@
+"""Which MOT rows are final: a track's rows are reported once they are known to belong to a
+vehicle.
+
+Rows wait until then: a tentative track's rows until it is confirmed (they are reported with
+its new id, so its start is not lost); a coasting track's predicted rows until a detection
+re-acquires it or its prediction leaves the image. A track deleted after `max_coast_seconds`
+without a detection never got its vehicle back, so its trailing predictions are dropped.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from vtrack.tracking.table import TrackTable
+
+ROW_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf")  # conf 1 = detected, < 1 = coasted
+
+
+class RowReporter:
+    """Holds the rows not yet final, by track uid."""
+
+    MAX_PENDING = 4096  # rows kept for a track not yet confirmed (static clutter is bounded)
+
+    def __init__(self, max_coast_seconds: float) -> None:
+        self.max_coast = max_coast_seconds
+        self.pending: dict[int, deque[np.ndarray]] = {}
+
+    def rows(self, frame: int, t: float, tracks: TrackTable, boxes: np.ndarray,
+             hit: np.ndarray, inside: np.ndarray, alive: np.ndarray) -> np.ndarray:
+        """The rows (R, 7) of ROW_COLUMNS that became final this frame; `boxes` are the
+        tracks' boxes clipped to the image. conf is 1 for a detected row and falls from 0.95
+        to 0.05 over the coasting limit."""
+        conf = np.where(hit, 1.0,
+                        np.clip(1.0 - (t - tracks.hist_t[:, 0]) / (self.max_coast + 1e-9),
+                                0.05, 0.95))
+        rows = np.column_stack([np.full(len(tracks), frame), tracks.id, boxes, conf])
+        # A prediction at the image edge can clip to an empty box: such a row has no position
+        # in the image and is not reported (INTERFACE: w, h > 0).
+        visible = (boxes[:, 2] >= 1.0) & (boxes[:, 3] >= 1.0)
+        waiting = np.fromiter(self.pending, dtype=int, count=len(self.pending))
+        has_pending = np.isin(tracks.uid, waiting)
+        confirmed = tracks.id > 0
+        simple = confirmed & hit & inside & alive & ~has_pending & visible
+        out = [rows[simple]]
+        for i in np.flatnonzero(~simple):
+            uid = int(tracks.uid[i])
+            if not alive[i]:
+                self.pending.pop(uid, None)
+                continue
+            if not inside[i]:
+                if confirmed[i]:
+                    out.extend(self.pending.pop(uid, []))
+                else:
+                    self.pending.pop(uid, None)
+                continue
+            if visible[i]:
+                self.pending.setdefault(uid, deque(maxlen=self.MAX_PENDING)).append(rows[i])
+            if confirmed[i] and hit[i] and uid in self.pending:
+                back = np.array(self.pending.pop(uid))
+                back[:, 1] = tracks.id[i]
+                out.append(back)
+        return np.vstack(out) if out else np.zeros((0, 7))
