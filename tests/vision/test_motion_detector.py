@@ -148,7 +148,7 @@ def test_shadow_pixels_are_dropped():
         shadow = (20 + 3 * n, 120, 40, 30) if n >= START else None
         d = det.detect(scene.frame(n, shadow=shadow))
     assert _match(d, scene.boxes(START + 14)).max() <= 2.0  # the car only
-    raw_fg = det._mog.apply(scene.frame(START + 15, shadow=(20 + 3 * 40, 120, 40, 30)),
+    raw_fg = det.background._mog.apply(scene.frame(START + 15, shadow=(20 + 3 * 40, 120, 40, 30)),
                             learningRate=0)
     assert np.count_nonzero(raw_fg == 127) > 500  # MOG2 did label the shadow
 

@@ -1,4 +1,6 @@
-"""Moving-vehicle detector: MOG2 background subtraction -> cleaned mask -> blobs.
+"""Moving-vehicle detector: one interface (`MotionDetector.detect`) over named stages:
+prepare (prepare.py) -> background (background.py) -> shadows (shadows.py) -> blobs
+(blobs.py).
 
 Per frame, at the detection resolution (frames wider than `detect_width` are halved until
 they fit: MOG2 costs ~10x decoding at full HD resolution):
@@ -9,7 +11,7 @@ they fit: MOG2 costs ~10x decoding at full HD resolution):
    between 95 and 116 within seconds, faster than MOG2 learns) and ignores vehicles;
 3. MOG2 (Zivkovic 2004, 2006) with a variance floor `var_min` = 16 (sigma >= 4 grey
    levels; OpenCV's floor of 4 lets H.264 texture refreshes light up foliage), learning
-   fast during the warm-up and at 1 / history afterwards (see `_learning_rate`);
+   fast during the warm-up and at 1 / history afterwards (see `Mog2Background.learning_rate`);
 4. MOG2's shadow label (127) is dropped (`shadow_threshold`), then the ROI mask is applied;
 5. morphology: opening (3x3) removes speckle and leaf flicker, then closing (7x7) fills a
    vehicle's holes (windows, a roof the colour of the road) and joins its fragments;
@@ -30,19 +32,17 @@ Boxes, centres and areas are mapped back to full-resolution pixels.
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
-from vtrack.errors import InputError
+from vtrack.vision.background import Mog2Background
+from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi
+from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
+from vtrack.vision.shadows import drop_shadows
 
-
-MOTION_GAP = 2    # frames between the two images of the motion check
-MOTION_DIFF = 15  # max(|dB|, |dG|, |dR|) above which a pixel counts as changed
+__all__ = ["DetectorConfig", "Detections", "MotionDetector", "downscale_factor"]
 
 
 def _f(default: Any, help_: str) -> Any:
@@ -123,18 +123,6 @@ class Detections:
         return Detections(np.zeros((0, 2)), np.zeros((0, 4)), np.zeros(0))
 
 
-def downscale_factor(width: int, detect_width: int) -> int:
-    """Smallest power of two s with width / s <= detect_width (1 for small frames)."""
-    s = 1
-    while width / s > detect_width:
-        s *= 2
-    return s
-
-
-def _kernel(size: int) -> np.ndarray | None:
-    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size)) if size > 1 else None
-
-
 class MotionDetector:
     """MOG2 detector for one video of a fixed frame size; call `detect` once per frame."""
 
@@ -142,134 +130,39 @@ class MotionDetector:
         cfg.validate()
         self.cfg = cfg
         self.width, self.height = width, height
-        self.scale = downscale_factor(width, cfg.detect_width)
-        self._size = (max(1, round(width / self.scale)), max(1, round(height / self.scale)))
-        self._sx, self._sy = width / self._size[0], height / self._size[1]
-        self._mog = cv2.createBackgroundSubtractorMOG2(cfg.history, cfg.var_threshold,
-                                                       cfg.detect_shadows)
-        self._mog.setShadowThreshold(cfg.shadow_ratio)
-        self._mog.setVarMin(cfg.var_min)  # OpenCV keeps var_min <= var_init <= var_max
-        self._mog.setVarInit(max(cfg.var_min, self._mog.getVarInit()))
-        self._mog.setVarMax(max(5 * cfg.var_min, self._mog.getVarMax()))
-        self._roi = self._load_roi(cfg.roi_mask) if cfg.roi_mask else None
-        self._open, self._close = _kernel(cfg.open_kernel), _kernel(cfg.close_kernel)
-        self._ref: np.ndarray | None = None
-        self._recent: deque[np.ndarray] = deque()  # the last MOTION_GAP prepared frames
-        self.frames = 0
+        self.prepare = FramePreparer(width, height, cfg.detect_width, cfg.blur)
+        self.scale = self.prepare.scale
+        size = self.prepare.size
+        self._sx, self._sy = width / size[0], height / size[1]
+        self.gain = GainCompensator(cfg.history) if cfg.gain_compensation else None
+        self.background = Mog2Background(cfg.history, cfg.var_threshold, cfg.var_min,
+                                         cfg.detect_shadows, cfg.shadow_ratio,
+                                         cfg.learning_rate, cfg.warmup_frames)
+        roi = load_roi(cfg.roi_mask, size) if cfg.roi_mask else None
+        self.clean = MaskCleaner(roi, cfg.open_kernel, cfg.close_kernel)
+        self.motion = MotionMap() if cfg.min_motion > 0 else None
         self.foreground: np.ndarray | None = None
 
-    def _load_roi(self, path: str) -> np.ndarray:
-        if not Path(path).is_file():
-            raise InputError(f"{path}: ROI mask not found")
-        mask = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
-        if mask is None:
-            raise InputError(f"{path}: ROI mask is not a readable image")
-        mask = cv2.resize(mask, self._size, interpolation=cv2.INTER_NEAREST)
-        return np.where(mask >= 128, 255, 0).astype(np.uint8)
+    @property
+    def frames(self) -> int:
+        """Frames seen so far."""
+        return self.background.frames
 
     def detect(self, image: np.ndarray) -> Detections:
         """Update the background with `image` (HxWx3 BGR uint8) and return its blobs."""
-        small = self._prepare(image)
-        self.frames += 1
-        raw = self._mog.apply(small, learningRate=self._learning_rate())
-        self.foreground = self._clean(raw)
-        moving = self._motion(small if small is not image else image.copy())
-        if self.frames <= self.cfg.warmup_frames:
-            return Detections.empty()
-        return self._blobs(self.foreground, moving)
-
-    def _learning_rate(self) -> float:
-        """MOG2's fast start (-1: 1 / (2 n)) during the warm-up, then the steady 1 / history.
-
-        A mode holding 10 % of a pixel's weight counts as background, so at the fast rate a
-        vehicle covering a pixel for more than 0.2 n frames melts into the background (long
-        or slow vehicles, for hundreds of frames); at 1 / 500 that takes ~50 frames.
-        """
-        if self.cfg.learning_rate >= 0:
-            return self.cfg.learning_rate
-        return -1.0 if self.frames <= self.cfg.warmup_frames else 1.0 / self.cfg.history
-
-    def _motion(self, small: np.ndarray) -> np.ndarray | None:
-        """Integral image of the pixels whose colour changed by more than MOTION_DIFF over
-        the last MOTION_GAP frames (None while there is no older frame, or when off).
-
-        Colour, not grey: a red car on grey asphalt can have the asphalt's grey level.
-        """
-        if self.cfg.min_motion <= 0:
-            return None
-        self._recent.append(small)
-        if len(self._recent) <= MOTION_GAP:
-            return None
-        b, g, r = cv2.split(cv2.absdiff(small, self._recent.popleft()))
-        diff = cv2.max(cv2.max(b, g), r)
-        return cv2.integral(cv2.threshold(diff, MOTION_DIFF, 1, cv2.THRESH_BINARY)[1])
-
-    def _prepare(self, image: np.ndarray) -> np.ndarray:
-        if image.shape[:2] != (self.height, self.width):
-            raise ValueError(f"frame is {image.shape[1]}x{image.shape[0]}, detector expects "
-                             f"{self.width}x{self.height}")
-        small = image if self.scale == 1 else cv2.resize(image, self._size,
-                                                         interpolation=cv2.INTER_AREA)
-        if self.cfg.blur > 1:
-            k = self.cfg.blur | 1
-            small = cv2.GaussianBlur(small, (k, k), 0)
-        if self.cfg.gain_compensation:
-            small = self._compensate_gain(small)
-        return small
-
-    def _compensate_gain(self, small: np.ndarray) -> np.ndarray:
-        """Scale `small` by the median ratio of a slow reference to it, on an 8x coarser grid.
-
-        g = median(ref / frame) over the grid cells is robust to vehicles covering fewer than
-        half of the cells; ref follows the compensated frames at MOG2's rate 1/history, so the
-        reference and MOG2's model agree and only changes faster than MOG2 learns are removed.
-        """
-        h, w = small.shape[:2]
-        coarse = cv2.resize(small, (max(1, w // 8), max(1, h // 8)), interpolation=cv2.INTER_AREA)
-        coarse = cv2.cvtColor(coarse, cv2.COLOR_BGR2GRAY).astype(np.float32) + 1.0
-        if self._ref is None:
-            self._ref = coarse
-            return small
-        gain = float(np.clip(np.median(self._ref / coarse), 0.5, 2.0))
-        self._ref += (gain * coarse - self._ref) / self.cfg.history
-        if abs(gain - 1.0) < 0.002:  # under half a grey level: skip the full-frame pass
-            return small
-        return cv2.convertScaleAbs(small, alpha=gain)
-
-    def _clean(self, raw: np.ndarray) -> np.ndarray:
-        _, fg = cv2.threshold(raw, self.cfg.shadow_threshold - 1, 255, cv2.THRESH_BINARY)
-        if self._roi is not None:
-            fg = cv2.bitwise_and(fg, self._roi)
-        if self._open is not None:
-            fg = cv2.morphologyEx(fg, cv2.MORPH_OPEN, self._open)
-        if self._close is not None:
-            fg = cv2.morphologyEx(fg, cv2.MORPH_CLOSE, self._close)
-        return fg
-
-    def _blobs(self, fg: np.ndarray, moving: np.ndarray | None) -> Detections:
-        """Outer contours of the mask, filtered, mapped to full resolution.
-
-        findContours is ~30x cheaper than connectedComponentsWithStats here; a blob's pixel
-        count follows from its contour polygon by Pick's theorem, A + B/2 + 1 (holes filled).
-        `moving` (an integral image) gives the changed pixels in each box in O(1).
-        """
-        contours, _ = cv2.findContours(fg, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-        if not contours:
-            return Detections.empty()
-        stats = np.array([(*cv2.boundingRect(c), cv2.contourArea(c) + len(c) / 2 + 1)
-                          for c in contours], dtype=np.float64)
-        x, y = stats[:, 0] * self._sx, stats[:, 1] * self._sy
-        w, h = stats[:, 2] * self._sx, stats[:, 3] * self._sy
-        area = stats[:, 4] * self._sx * self._sy
         cfg = self.cfg
-        keep = ((stats[:, 4] >= cfg.min_pixels) & (area >= cfg.min_area)
-                & (area <= cfg.max_area_fraction * self.width * self.height)
-                & (area >= cfg.min_fill * w * h))
-        if moving is not None:
-            x0, y0, bw, bh = stats[:, :4].astype(np.int64).T
-            x1, y1 = x0 + bw, y0 + bh
-            changed = moving[y1, x1] - moving[y0, x1] - moving[y1, x0] + moving[y0, x0]
-            keep &= changed >= cfg.min_motion * bw * bh
-        boxes = np.stack([x, y, w, h], axis=1)[keep]
-        centers = boxes[:, :2] + boxes[:, 2:] / 2
-        return Detections(centers, boxes, area[keep])
+        small = self.prepare(image)
+        if self.gain is not None:
+            small = self.gain(small)
+        raw = self.background.apply(small)
+        self.foreground = self.clean(drop_shadows(raw, cfg.shadow_threshold))
+        moving = None
+        if self.motion is not None:
+            moving = self.motion(small if small is not image else image.copy())
+        if self.frames <= cfg.warmup_frames:
+            return Detections.empty()
+        boxes, areas = find_blobs(self.foreground, moving, self._sx, self._sy,
+                                  cfg.min_pixels, cfg.min_area,
+                                  cfg.max_area_fraction * self.width * self.height,
+                                  cfg.min_fill, cfg.min_motion)
+        return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas)
