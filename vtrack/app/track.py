@@ -74,7 +74,8 @@ class TrackJob:
         complete = False
         writer = logger = bar = None
         try:
-            detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height)
+            detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height,
+                                      self.info.fps)
             tracker = Tracker(self.cfg.tracker, self.info.width, self.info.height)
             writer = self._open_writer()
             logger = self._open_rerun()
@@ -82,7 +83,8 @@ class TrackJob:
             t0 = time.perf_counter()
             for frame in reader:
                 dets = detector.detect(frame.image)
-                ft = tracker.step(frame.index, frame.time, dets.centers, dets.boxes)
+                ft = tracker.step(frame.index, frame.time, dets.centers, dets.boxes,
+                                  dets.motion)
                 self.frames = frame.index
                 self.acc.times.append(frame.time)
                 self._record(ft)

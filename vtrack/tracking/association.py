@@ -29,7 +29,7 @@ def nearest_pairs(queries: np.ndarray, points: np.ndarray, radius: float, k: int
 
 
 def gated_pairs(pred: np.ndarray, P: np.ndarray, dets: np.ndarray, gate: float,
-                max_radius: float,
+                max_radius: float | np.ndarray,
                 pair_measurement: Callable[[np.ndarray, np.ndarray],
                                            tuple[np.ndarray, np.ndarray]]
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -38,10 +38,17 @@ def gated_pairs(pred: np.ndarray, P: np.ndarray, dets: np.ndarray, gate: float,
     pred (T, 2) predicted positions with covariances P (T, 2, 2), dets (D, 2) detection
     centres; pair_measurement(ti, di) gives each pair's measured position z (K, 2) and its
     variances var (K, 2), so nu = z - pred and S = P + diag(var). Each track's 8 nearest
-    detections within max_radius are the candidates (a k-d tree query).
+    detections within its max_radius (T,) are the candidates (a k-d tree query).
     Returns track indices, detection indices and the cost d2 + ln det S of each pair.
     """
-    ti, di = nearest_pairs(pred, dets, max_radius)  # a gate holds a few detections at most
+    if len(pred) == 0:
+        e = np.empty(0, dtype=int)
+        return e, e, np.empty(0)
+    max_radius = np.broadcast_to(np.asarray(max_radius, dtype=float), (len(pred),))
+    # a gate holds a few detections at most
+    ti, di = nearest_pairs(pred, dets, float(np.max(max_radius)))
+    near = np.hypot(*(dets[di] - pred[ti]).T) <= max_radius[ti]
+    ti, di = ti[near], di[near]
     if len(ti) == 0:
         return ti, di, np.empty(0)
     z, var = pair_measurement(ti, di)

@@ -22,6 +22,11 @@ from vtrack.tracking.measurements import nested_centre
 from vtrack.tracking.table import TrackTable
 
 
+def detection_sigma(cfg: TrackerConfig, scale: np.ndarray) -> np.ndarray:
+    """Std (px) of a detected centre for boxes of scale `scale` (px): scale-free, >= 0.5."""
+    return np.maximum(cfg.detection_sigma * scale, 0.5)
+
+
 @dataclass
 class Association:
     """The outcome of one frame's association."""
@@ -49,10 +54,12 @@ class Associator:
         cfg = self.cfg
         track_boxes = tracks.boxes(self.width, self.height)
         centers, boxes, split = self._join_fragments(tracks, track_boxes, t, centers, boxes)
+        size, scale = tracks.size, tracks.scale
+        sigma = detection_sigma(cfg, scale)
         ti, di, cost = gated_pairs(
-            tracks.x[:, :2], tracks.P[:, :2, :2], centers, self.gate, cfg.max_gate_px,
-            lambda trk, det: nested_centre(tracks.x[trk, :2], tracks.size[trk], boxes[det],
-                                           cfg.detection_sigma))
+            tracks.x[:, :2], tracks.P[:, :2, :2], centers, self.gate, cfg.max_gate * scale,
+            lambda trk, det: nested_centre(tracks.x[trk, :2], size[trk], boxes[det],
+                                           sigma[trk, None]))
         mt, md = assign(ti, di, cost, len(tracks), len(centers))
         mt, md, consumed, duplicates = _resolve_shared(tracks, track_boxes, mt, md, boxes)
         mt, md = _reacquire(tracks, track_boxes, mt, md, consumed, duplicates, centers)
@@ -113,7 +120,7 @@ class Associator:
             tracks.gap_p[track], tracks.gap_t[track] = gap, t
             return False
         travelled = np.hypot(*tracks.x[track, 2:4]) * (t - tracks.gap_t[track])
-        if travelled < self.cfg.split_evidence_px:
+        if travelled < self.cfg.split_evidence * tracks.scale[track]:
             return False
         return bool(np.hypot(*(gap - tracks.gap_p[track])) >= 0.5 * travelled)
 

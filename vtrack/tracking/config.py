@@ -1,10 +1,16 @@
-"""Tracker parameters ([tracker] in the TOML config), each documented where it is declared."""
+"""Tracker parameters ([tracker] in the TOML config), each documented where it is declared.
+
+Scale-free: lengths are in box scales (the box scale of a track is sqrt(w h) of its box, in
+px) and durations in seconds, so one default serves 320x240 and 1920x1080 video, 24 and 60
+fps, and both ends of a perspective view where a vehicle's size changes several times.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 ADAPTIVE_KINDS = ("ankf1", "ankf2", "fuzzy-r", "fuzzy-q", "siim-ekf")
+MEASUREMENTS = ("finite-difference", "finite-difference-white", "position")
 
 
 def _h(text: str) -> dict:
@@ -21,63 +27,78 @@ class TrackerConfig:
         "rows: 'ankf1', 'ankf2', 'fuzzy-r', 'fuzzy-q', 'siim-ekf'"))
     measurement: str = field(default="finite-difference", metadata=_h(
         "'finite-difference': position + finite-difference velocity and acceleration "
-        "(seed 001 eqs. 24-26, H = I6); 'position': position only"))
-    jerk_psd: float = field(default=1e4, metadata=_h(
-        "white-jerk spectral density q_j of the constant-acceleration model, px^2/s^5"))
-    detection_sigma: float = field(default=2.0, metadata=_h(
-        "std of a detected centre, px (R of the position rows; the differences follow)"))
-    init_speed_sigma: float = field(default=150.0, metadata=_h(
-        "prior std of a new track's velocity, px/s"))
-    init_accel_sigma: float = field(default=100.0, metadata=_h(
-        "prior std of a new track's acceleration, px/s^2"))
+        "(seed 001 eqs. 24-26) with the errors of the detections they share carried in the "
+        "state (consistent); 'finite-difference-white': the seed's H = I6 with white "
+        "R = D Sigma D' (overconfident: its rows are correlated in time); 'position': "
+        "position only"))
+    jerk: float = field(default=10.0, metadata=_h(
+        "white-jerk spectral density of the constant-acceleration model, box scales^2/s^5 "
+        "(q_j = jerk * L^2 px^2/s^5 for a box of scale L px)"))
+    detection_sigma: float = field(default=0.06, metadata=_h(
+        "std of a detected centre, box scales (at least 0.5 px)"))
+    init_speed_sigma: float = field(default=5.0, metadata=_h(
+        "prior std of a new track's velocity, box scales/s"))
+    init_accel_sigma: float = field(default=3.0, metadata=_h(
+        "prior std of a new track's acceleration, box scales/s^2"))
     gate_probability: float = field(default=0.999, metadata=_h(
         "chi-square gate on the predicted position (2 dof)"))
-    max_gate_px: float = field(default=80.0, metadata=_h(
-        "upper bound of the gate's Euclidean radius, px"))
-    confirm_hits: int = field(default=6, metadata=_h(
-        "M of the M-of-N confirmation (a track's rows from before it are back-filled)"))
-    confirm_window: int = field(default=8, metadata=_h("N of the M-of-N confirmation"))
-    confirm_motion: float = field(default=0.3, metadata=_h(
-        "a track is confirmed only once its detected centre has moved this many box "
-        "diagonals from where it was first seen: a vehicle moves, swaying leaves and "
-        "flicker stay put (0 turns the check off)"))
+    max_gate: float = field(default=2.5, metadata=_h(
+        "upper bound of the gate's Euclidean radius, box scales"))
+    size_psd: float = field(default=0.01, metadata=_h(
+        "white-noise acceleration density of the log box size, 1/s^3 (box_size.py)"))
+    size_rate_seconds: float = field(default=1.0, metadata=_h(
+        "time constant of the size rates' return to zero without measurements, s"))
+    size_sigma: float = field(default=0.08, metadata=_h(
+        "relative std of a detected box side"))
+    size_gate_probability: float = field(default=0.997, metadata=_h(
+        "a detected side outside this chi-square gate (1 dof) of the predicted size is a "
+        "partial view or a merge: it does not update the size (box_size.py)"))
+    size_grow_seconds: float = field(default=1.0, metadata=_h(
+        "detections larger than the size gate (by more than the vehicle can have come out "
+        "from behind something) for this long restart the size from them, s"))
+    size_shrink_seconds: float = field(default=1.0, metadata=_h(
+        "detections smaller than the size gate for this long restart the size from them, s"))
+    init_size_rate_sigma: float = field(default=0.05, metadata=_h(
+        "prior std of a new track's relative size rate d ln w/dt, 1/s"))
+    confirm_seconds: float = field(default=0.3, metadata=_h(
+        "confirmation window, s: a track is confirmed once detected in `confirm_fraction` "
+        "of the frames of the last `confirm_seconds` (a track's rows from before are "
+        "back-filled)"))
+    confirm_fraction: float = field(default=0.75, metadata=_h(
+        "share of the confirmation window's frames with a detection"))
+    confirm_motion: float = field(default=0.5, metadata=_h(
+        "a track is confirmed only once its detected centre has moved this many box scales "
+        "from where it was first seen: a vehicle moves, swaying leaves and flicker stay put "
+        "(0 turns the check off)"))
     max_coast_seconds: float = field(default=1.0, metadata=_h(
         "time a confirmed track coasts on its prediction without a detection before it is "
-        "deleted, s (in time, not frames, so it means the same at 24 and 60 fps)"))
-    tentative_misses: int = field(default=3, metadata=_h(
-        "misses that delete a track not yet confirmed"))
-    size_smoothing: float = field(default=0.5, metadata=_h(
-        "weight of a detection that is larger than the track's box in the box size (0..1]"))
-    max_size_growth: float = field(default=0.1, metadata=_h(
-        "largest relative growth of a track's box per frame (plus the track's displacement, "
-        "so a vehicle coming into view at the border can grow)"))
-    size_shrink: float = field(default=0.05, metadata=_h(
-        "weight of a smaller detection in the box size: small, because a vehicle partly "
-        "hidden by an occluder or the image border looks smaller (0..1]"))
-    split_evidence_px: float = field(default=8.0, metadata=_h(
+        "deleted, s"))
+    tentative_coast_seconds: float = field(default=0.1, metadata=_h(
+        "time without a detection that deletes a track not yet confirmed, s"))
+    split_evidence: float = field(default=0.25, metadata=_h(
         "a track whose box holds two pieces tells one vehicle cut by an occluder (the gap "
         "between the pieces stays put) from several vehicles (the gap moves with them) once "
-        "it has moved this far since the pieces appeared, px"))
-    edge_margin_px: float = field(default=0.0, metadata=_h(
-        "a track is deleted once its whole predicted box is this far outside the image (a "
-        "vehicle half out of view keeps its track: the nested-box measurement follows it)"))
+        "it has moved this far since the pieces appeared, box scales"))
+    edge_margin: float = field(default=0.0, metadata=_h(
+        "a track is deleted once its whole predicted box is this far outside the image, box "
+        "scales (a vehicle half out of view keeps its track)"))
 
     def validate(self) -> None:
         if self.filter not in ("kf",) + ADAPTIVE_KINDS:
             raise ValueError(f"tracker.filter must be one of kf, {', '.join(ADAPTIVE_KINDS)}")
-        if self.measurement not in ("finite-difference", "position"):
-            raise ValueError("tracker.measurement must be 'finite-difference' or 'position'")
-        for name in ("jerk_psd", "detection_sigma", "init_speed_sigma", "init_accel_sigma",
-                     "max_gate_px", "split_evidence_px"):
+        if self.measurement not in MEASUREMENTS:
+            raise ValueError(f"tracker.measurement must be one of {', '.join(MEASUREMENTS)}")
+        for name in ("jerk", "detection_sigma", "init_speed_sigma", "init_accel_sigma",
+                     "max_gate", "split_evidence", "size_psd", "size_sigma",
+                     "init_size_rate_sigma", "size_rate_seconds", "size_shrink_seconds", "confirm_seconds", "max_coast_seconds",
+                     "tentative_coast_seconds"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"tracker.{name} must be positive")
-        if not 0 < self.gate_probability < 1:
-            raise ValueError("tracker.gate_probability must be in (0, 1)")
-        if not 1 <= self.confirm_hits <= self.confirm_window <= 30:
-            raise ValueError("tracker needs 1 <= confirm_hits <= confirm_window <= 30")
-        if self.confirm_motion < 0:
-            raise ValueError("tracker.confirm_motion must be >= 0")
-        if self.max_coast_seconds < 0 or self.tentative_misses < 1:
-            raise ValueError("tracker.max_coast_seconds >= 0 and tentative_misses >= 1")
-        if not (0 < self.size_smoothing <= 1 and 0 < self.size_shrink <= 1):
-            raise ValueError("tracker.size_smoothing and size_shrink must be in (0, 1]")
+        for name in ("gate_probability", "size_gate_probability"):
+            if not 0 < getattr(self, name) < 1:
+                raise ValueError(f"tracker.{name} must be in (0, 1)")
+        if not 0 < self.confirm_fraction <= 1:
+            raise ValueError("tracker.confirm_fraction must be in (0, 1]")
+        for name in ("confirm_motion", "edge_margin", "size_grow_seconds"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"tracker.{name} must be >= 0")

@@ -1,15 +1,21 @@
 """The filter bank: one constant-acceleration Kalman filter per track, stepped together.
 
-`kf` keeps every track's (x, P) in the track table and steps them as arrays through the
-shared core (vtrack.estimation.kalman: the Joseph-form step the seed experiments use). The
-adaptive kinds of the core (ankf1, ankf2, fuzzy-r, fuzzy-q, siim-ekf) run one core filter
-object per track on the position rows and adapt their own noise from the innovations.
+`kf` keeps every track's state [x, y, vx, vy, ax, ay] of the box centre (seed 001 eq. 21)
+in the track table and steps all of them as arrays through the shared core
+(vtrack.estimation.kalman: the Joseph-form step the seed experiments use).
+
+The process noise is scale-free: the white-jerk density is `jerk` box scales^2 / s^5, so
+q_j = jerk * L^2 for a track whose box scale is L px (a far vehicle small in the image
+manoeuvres in fewer pixels than a near one).
+
+The adaptive kinds of the core (ankf1, ankf2, fuzzy-r, fuzzy-q, siim-ekf) run one core
+filter object per track on the position rows and adapt their own noise from the
+innovations.
 """
 
 from __future__ import annotations
 
 import numpy as np
-
 from vtrack.estimation.filters import GaussianFilter, make_filter
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import ConstantAcceleration, position_measurement
@@ -17,54 +23,91 @@ from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.table import TrackTable
 
 
+
 class FilterBank:
     """Predict and update the filters of the tracks in a TrackTable."""
 
     def __init__(self, cfg: TrackerConfig) -> None:
-        self.model = ConstantAcceleration(cfg.jerk_psd)
+        self.cfg = cfg
+        self.model = ConstantAcceleration(1.0)   # unit jerk density; scaled per track
         self.kind = cfg.filter
         # Adaptive kinds: one core filter object per track (by uid) on the position rows.
         self._objects: dict[int, GaussianFilter] = {}
-        self._position = position_measurement(6, cfg.detection_sigma)
 
-    def start(self, uids: np.ndarray, x0: np.ndarray, P0: np.ndarray) -> None:
-        """Register new tracks with prior (x0, P0) (per-track objects for adaptive kinds)."""
+    def prior(self, centers: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x0, P0) of new tracks before their first detection: centred on it with a
+        position spread of the box scale (K,), unknown velocity and acceleration (in box
+        scales per second); the first update brings the position to the detection's."""
+        cfg = self.cfg
+        x0 = np.zeros((len(centers), 6))
+        x0[:, :2] = centers
+        sd = scale[:, None] * np.array([1.0, 1.0, cfg.init_speed_sigma, cfg.init_speed_sigma,
+                                        cfg.init_accel_sigma, cfg.init_accel_sigma])
+        P0 = np.zeros((len(centers), 6, 6))
+        P0[:, np.arange(6), np.arange(6)] = sd**2
+        return x0, P0
+
+    def start(self, uids: np.ndarray, x0: np.ndarray, var: np.ndarray, scale: np.ndarray
+              ) -> None:
+        """Register new tracks (per-track objects for the adaptive kinds, whose prior is
+        the first detection with its variance var (K, 2); box scales (K,) px)."""
         if self.kind == "kf":
             return
-        for u, xi in zip(uids, x0, strict=True):
-            self._objects[int(u)] = make_filter(self.kind, self.model, self._position, xi, P0)
+        cfg = self.cfg
+        for u, xi, vi, scale in zip(uids, x0, var, scale, strict=True):
+            P0 = np.diag([*vi, *(2 * [(cfg.init_speed_sigma * scale) ** 2]),
+                          *(2 * [(cfg.init_accel_sigma * scale) ** 2])])
+            position = position_measurement(6, np.sqrt(vi))
+            model = ConstantAcceleration(cfg.jerk * scale**2)
+            self._objects[int(u)] = make_filter(self.kind, model, position, xi, P0)
 
     def forget(self, uids: np.ndarray) -> None:
         """Drop the filters of deleted tracks."""
         for u in uids:
             self._objects.pop(int(u), None)
 
+    def warp(self, tracks: TrackTable, m: np.ndarray) -> None:
+        """Move every track with the camera (see TrackTable.warp)."""
+        tracks.warp(m)
+        for i, uid in enumerate(tracks.uid):
+            f = self._objects.get(int(uid))
+            if f is not None:
+                f.x, f.P = tracks.x[i].copy(), tracks.P[i].copy()
+
     def predict(self, tracks: TrackTable, dt: float) -> None:
-        """Propagate every track over dt (s) with the white-jerk model (seed 001 eq. 21)."""
+        """Propagate every track over dt (s) with the white-jerk model (seed 001 eqs. 21-23)."""
         if len(tracks) == 0 or dt <= 0:
             return
         if self.kind == "kf":
-            F = self.model.transition(dt)
-            tracks.x, tracks.P = kf_predict(tracks.x, tracks.P, F, self.model.Q(dt))
+            q = self.cfg.jerk * tracks.scale**2
+            tracks.x, tracks.P = kf_predict(tracks.x, tracks.P, self.model.transition(dt),
+                                            q[:, None, None] * self.model.Q(dt))
             return
         for i, uid in enumerate(tracks.uid):
             f = self._objects[int(uid)]
             f.predict(dt)
             tracks.x[i], tracks.P[i] = f.x, f.P
 
-    def update(self, tracks: TrackTable, idx: np.ndarray, z: np.ndarray, R: np.ndarray,
-               mask: np.ndarray) -> np.ndarray:
-        """Update tracks `idx` with measurements z (K, 6) of [x, y, vx, vy, ax, ay], their
-        covariances R (K, 6, 6) and the rows present (mask); H = I6 (seed 001 eqs. 24-26).
-        Adaptive kinds take the position rows only. Returns |position innovation| (K,), px."""
+    def update(self, tracks: TrackTable, idx: np.ndarray, z: np.ndarray, H: np.ndarray,
+               R: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """Update tracks `idx` with the measurement (z, H, R, mask) of measurements.py
+        (seed 001 eqs. 24-26). Adaptive kinds take the position rows only. Returns the NIS
+        (K,) of each update."""
+        if len(idx) == 0:
+            return np.zeros(0)
+        if self.kind != "kf":
+            return self._update_objects(tracks, idx, z)
         nu = z - tracks.x[idx]
-        if len(idx) and self.kind == "kf":
-            H = np.tile(np.eye(6), (len(idx), 1, 1))
-            tracks.x[idx], tracks.P[idx], _ = kf_update(tracks.x[idx], tracks.P[idx], nu, H,
+        tracks.x[idx], tracks.P[idx], innov = kf_update(tracks.x[idx], tracks.P[idx], nu, H,
                                                         R, mask=mask)
-        elif len(idx):
-            for i, zi in zip(idx, z[:, :2], strict=True):
-                f = self._objects[int(tracks.uid[i])]
-                f.update(zi)
-                tracks.x[i], tracks.P[i] = f.x, f.P
-        return np.hypot(nu[:, 0], nu[:, 1])
+        return innov.nis
+
+    def _update_objects(self, tracks: TrackTable, idx: np.ndarray, z: np.ndarray
+                        ) -> np.ndarray:
+        nis = np.zeros(len(idx))
+        for j, (i, zi) in enumerate(zip(idx, z[:, :2], strict=True)):
+            f = self._objects[int(tracks.uid[i])]
+            innov = f.update(zi)
+            nis[j] = float(innov.nis) if innov is not None else np.nan
+            tracks.x[i], tracks.P[i] = f.x, f.P
+        return nis

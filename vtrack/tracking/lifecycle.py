@@ -1,9 +1,9 @@
 """Track lifecycle: initiation, confirmation and deletion.
 
-tentative -> confirmed after `confirm_hits` hits in the last `confirm_window` frames, once it
-has moved `confirm_motion` box diagonals (static clutter never does) -> coasting on the
-prediction while detections are lost -> deleted after `max_coast_seconds` without a
-detection (a tentative track after `tentative_misses` missed frames), when its whole
+tentative -> confirmed once detected in `confirm_fraction` of the frames of the last
+`confirm_seconds` and moved `confirm_motion` box scales (static clutter never does) ->
+coasting on the prediction while detections are lost -> deleted after `max_coast_seconds`
+without a detection (a tentative track after `tentative_coast_seconds`), when its whole
 predicted box has left the image, or as the duplicate of an older track.
 """
 
@@ -19,47 +19,44 @@ from vtrack.tracking.table import TrackTable
 class Initiator:
     """Starts tentative tracks on detections no track explains."""
 
-    def __init__(self, cfg: TrackerConfig) -> None:
-        self.cfg = cfg
+    def __init__(self) -> None:
         self.next_uid = 0
-        s = cfg
-        self.P0 = np.diag([s.detection_sigma**2] * 2 + [s.init_speed_sigma**2] * 2
-                          + [s.init_accel_sigma**2] * 2)
 
-    def start(self, t: float, centers: np.ndarray, boxes: np.ndarray, used: np.ndarray,
-              confirmed_boxes: np.ndarray) -> tuple[TrackTable, np.ndarray]:
-        """New tentative tracks on the detections not `used` whose centre no confirmed
-        track's box covers (a fragment of a tracked vehicle is not a new vehicle).
-        Returns the new tracks and the detections they started on."""
+    @staticmethod
+    def select(centers: np.ndarray, used: np.ndarray, confirmed_boxes: np.ndarray
+               ) -> np.ndarray:
+        """The detections not `used` whose centre no confirmed track's box covers (a
+        fragment of a tracked vehicle is not a new vehicle)."""
         free = np.ones(len(centers), dtype=bool)
         free[used] = False
         if len(confirmed_boxes) and free.any():
             idx = np.flatnonzero(free)
             _, covered = points_in_boxes(centers[idx], confirmed_boxes)
             free[idx[covered]] = False
-        new = np.flatnonzero(free)
-        k = len(new)
+        return np.flatnonzero(free)
+
+    def table(self, t: float, centers: np.ndarray, x0: np.ndarray, P0: np.ndarray,
+              s0: np.ndarray, Ps0: np.ndarray) -> TrackTable:
+        """Tentative tracks with priors (x0, P0) and box sizes (s0, Ps0), first seen at
+        `centers` at time t (their first detection is not assimilated yet)."""
+        k = len(centers)
         table = TrackTable.empty()
-        if k == 0:
-            return table, new
-        x = np.zeros((k, 6))
-        x[:, :2] = centers[new]
-        table.x, table.P = x, np.repeat(self.P0[None], k, axis=0)
-        table.size, table.origin = boxes[new, 2:].copy(), centers[new]
+        table.x, table.P, table.s, table.Ps = x0, P0, s0, Ps0
+        table.mismatch_t, table.mismatch_sign = np.full((k, 2), np.nan), np.zeros((k, 2))
+        table.ref_p, table.ref_s = np.zeros((k, 2)), np.full(k, np.nan)
+        table.origin = centers.copy()
         table.hist_p = np.zeros((k, 3, 2))
-        table.hist_p[:, 0] = centers[new]
-        table.hist_t = np.zeros((k, 3))
-        table.hist_t[:, 0] = t
-        table.hist_s = np.full((k, 3, 2), self.cfg.detection_sigma)
-        table.count = np.ones(k, dtype=int)
-        table.hitmask = np.ones(k, dtype=np.int64)
+        table.hist_t = np.full((k, 3), t)
+        table.hist_s = np.zeros((k, 3, 2))
+        table.count = np.zeros(k, dtype=int)
+        table.hitmask = np.zeros(k, dtype=np.int64)
         table.misses = np.zeros(k, dtype=int)
         table.killed = np.zeros(k, dtype=bool)
         table.id = np.zeros(k, dtype=int)
         table.uid = np.arange(self.next_uid, self.next_uid + k)
         self.next_uid += k
         table.gap_p, table.gap_t = np.full((k, 2), np.nan), np.full(k, np.nan)
-        return table, new
+        return table
 
 
 def record_hits(tracks: TrackTable, hit: np.ndarray, window: int) -> None:
@@ -71,34 +68,38 @@ def record_hits(tracks: TrackTable, hit: np.ndarray, window: int) -> None:
 def fate(tracks: TrackTable, t: float, width: int, height: int, cfg: TrackerConfig
          ) -> tuple[np.ndarray, np.ndarray]:
     """(inside, alive): whether part of each predicted box is still in the image, and whether
-    the track is within its miss limit (and not a duplicate)."""
-    m = cfg.edge_margin_px + tracks.size / 2
+    the track is within its coasting limit (and not a duplicate)."""
+    m = cfg.edge_margin * tracks.scale[:, None] + tracks.size / 2
     x, y = tracks.x[:, 0], tracks.x[:, 1]
     inside = ((x >= -m[:, 0]) & (x <= width + m[:, 0])
               & (y >= -m[:, 1]) & (y <= height + m[:, 1]))
     lost_for = t - tracks.hist_t[:, 0]
-    alive = np.where(tracks.id > 0, lost_for <= cfg.max_coast_seconds + 1e-9,
-                     tracks.misses <= cfg.tentative_misses - 1)
+    limit = np.where(tracks.id > 0, cfg.max_coast_seconds, cfg.tentative_coast_seconds)
+    alive = lost_for <= limit + 1e-9
     return inside, alive & ~tracks.killed
 
 
 class Confirmer:
-    """M-of-N hits plus motion: hands out the public ids, in the order tracks confirm."""
+    """M-of-N hits plus motion: hands out the public ids, in the order tracks confirm.
 
-    def __init__(self, cfg: TrackerConfig) -> None:
+    The window is `confirm_seconds` long in frames of the video's rate (8 frames at 25 fps,
+    18 at 60), M its `confirm_fraction`."""
+
+    def __init__(self, cfg: TrackerConfig, fps: float) -> None:
         self.cfg = cfg
+        self.window = int(np.clip(round(cfg.confirm_seconds * fps), 1, 62))
+        self.hits = max(1, int(np.ceil(cfg.confirm_fraction * self.window - 1e-9)))
         self.next_id = 1
 
     def confirm(self, tracks: TrackTable, hit: np.ndarray, eligible: np.ndarray) -> None:
-        """Give an id to each tentative, `eligible` track detected this frame with
-        `confirm_hits` hits in its window whose detected centre has moved `confirm_motion`
-        box diagonals from where it was first seen."""
+        """Give an id to each tentative, `eligible` track detected this frame with M hits in
+        its window whose detected centre has moved `confirm_motion` box scales from where
+        it was first seen."""
         cfg = self.cfg
-        diagonal = np.hypot(tracks.size[:, 0], tracks.size[:, 1])
         moved = (np.hypot(*(tracks.hist_p[:, 0] - tracks.origin).T)
-                 >= cfg.confirm_motion * diagonal)
+                 >= cfg.confirm_motion * tracks.scale)
         ready = ((tracks.id == 0) & eligible & hit & moved
-                 & (np.bitwise_count(tracks.hitmask) >= cfg.confirm_hits))
+                 & (np.bitwise_count(tracks.hitmask) >= self.hits))
         new = np.flatnonzero(ready)
         tracks.id[new] = np.arange(self.next_id, self.next_id + len(new))
         self.next_id += len(new)

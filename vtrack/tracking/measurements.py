@@ -1,19 +1,35 @@
-"""Seed 001's per-vehicle measurement: position plus finite-difference velocity and
-acceleration (eqs. 24-26, H = I6), formed from a track's last detections at their real times.
+"""Per-vehicle measurements: a detected box as a measurement of a track's centre (nested
+boxes), and seed 001's position plus finite-difference velocity and acceleration
+(eqs. 24-26) processed consistently.
 
 For detections p_k, p_{k-1}, p_{k-2} at spacings h1 = t_k - t_{k-1}, h2 = t_{k-1} - t_{k-2}:
 
     v = (p_k - p_{k-1}) / h1
     a = 2 [(p_k - p_{k-1}) / h1 - (p_{k-1} - p_{k-2}) / h2] / (h1 + h2)
 
-(equal spacing gives the seed's (p_k - 2 p_{k-1} + p_{k-2}) / dt^2). Per axis (p, v, a) = D
-(p_k, p_{k-1}, p_{k-2}), so white position noise sigma^2 gives R_axis = sigma^2 D D'
-(SEEDS 3.1; the equal-spacing case is the matrix printed there).
+(equal spacing gives the seed's (p_k - 2 p_{k-1} + p_{k-2}) / dt^2). Per axis z = (p, v, a)
+= D (p_k, p_{k-1}, p_{k-2}) = D0 p_k + D1 p_{k-1} + D2 p_{k-2}, Dj the columns of D.
+
+The seed treats z as x + white noise with R = D Sigma D' (SEEDS 3.1; mode
+'finite-difference-white'). It is not white: consecutive z share detections, so their errors
+are correlated in time and that filter is overconfident (ANEES ~10 for 6 states; tests).
+Written as it is formed, z given the detections already assimilated is
+
+    z = D0 p_k + c,   c = D1 p_{k-1} + D2 p_{k-2}  (known numbers),   p_k = H x + e_k,
+
+an affine function of the new detection alone: its innovation is D0 (p_k - H x-), of rank
+one per axis, and the update it implies -- D0's pseudo-inverse maps it back -- is the update
+with p_k = D0+ (z - c), H the position rows and R the detection's variance (mode
+'finite-difference'). So the consistent filter of the seed's measurement extracts the new
+detection from z and gains nothing from the differences beyond it: the same estimate as the
+textbook position-only filter, and consistent (ANEES in the chi-square band; tests).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+MODES = ("finite-difference", "finite-difference-white", "position")
 
 
 def difference_operator(h1: np.ndarray, h2: np.ndarray) -> np.ndarray:
@@ -30,38 +46,120 @@ def difference_operator(h1: np.ndarray, h2: np.ndarray) -> np.ndarray:
     return D
 
 
+def backward_positions(h1: np.ndarray, h2: np.ndarray) -> np.ndarray:
+    """Phi_back (..., 3, 3): (p, v, a) of one axis at t_k -> positions at t_k, t_{k-1},
+    t_{k-2} under constant acceleration (seed 001 eq. 22 run backwards)."""
+    h1 = np.asarray(h1, dtype=float)
+    s = h1 + np.asarray(h2, dtype=float)
+    P = np.zeros(h1.shape + (3, 3))
+    P[..., :, 0] = 1.0
+    P[..., 1, 1], P[..., 1, 2] = -h1, h1**2 / 2
+    P[..., 2, 1], P[..., 2, 2] = -s, s**2 / 2
+    return P
+
+
 def finite_difference_measurement(points: np.ndarray, times: np.ndarray, count: np.ndarray,
                                   sigma: float | np.ndarray, position_only: bool = False
                                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Measurements of N tracks in the state layout [x, y, vx, vy, ax, ay].
+    """The seed's measurement of N tracks in the state layout [x, y, vx, vy, ax, ay].
 
     points (N, 3, 2): the last three detected centres, newest first; times (N, 3) their times;
     count (N,): how many of them exist (1, 2 or 3); sigma: the std of each detected centre, a
-    number or (N, 3, 2) per detection and axis (R_axis = D diag(sigma^2) D'). Returns z (N, 6),
-    R (N, 6, 6) and the mask
-    (N, 6) of rows present: a track with one detection measures its position only, with two
-    also its velocity (eqs. 24-25); position_only keeps only the position rows.
+    number or (N, 3, 2) per detection and axis. Returns z (N, 6), the seed's white-noise
+    R = D diag(sigma^2) D' (N, 6, 6) and the mask (N, 6) of rows present: a track with one
+    detection measures its position only, with two also its velocity (eqs. 24-25);
+    position_only keeps only the position rows.
     """
     n = len(points)
-    h1 = times[:, 0] - times[:, 1]
-    h2 = times[:, 1] - times[:, 2]
-    # Unused spacings get a harmless placeholder; their rows are masked out below.
-    h1 = np.where(count >= 2, h1, 1.0)
-    h2 = np.where(count >= 3, h2, 1.0)
-    D = difference_operator(h1, h2)                          # (N, 3, 3)
-    pva = np.einsum("nij,njd->nid", D, points)                # (N, 3 derivs, 2 axes)
-    z = pva.reshape(n, 6)                                     # [x, y, vx, vy, ax, ay]
+    D = _operator(times, count)
+    z = np.einsum("nij,njd->nid", D, points).reshape(n, 6)   # [x, y, vx, vy, ax, ay]
     var = np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, (n, 3, 2))
     R = np.zeros((n, 6, 6))
     for axis in (0, 1):
         R[:, axis::2, axis::2] = (D * var[:, None, :, axis]) @ np.swapaxes(D, -1, -2)
+    return z, R, _rows(count, position_only)
+
+
+def measurement_model(points: np.ndarray, times: np.ndarray, count: np.ndarray,
+                      sigmas: np.ndarray, mode: str
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(z, H, R, mask) of N tracks over the state [x, y, vx, vy, ax, ay] from their last
+    three detections `points` (N, 3, 2) at `times` (N, 3), `count` (N,) of them, with stds
+    `sigmas` (N, 3, 2): 'finite-difference' processes the seed's z consistently (the new
+    detection D0+ (z - c) on the position rows, see the module docstring),
+    'finite-difference-white' the seed's white model (H = I6, R = D Sigma D'), 'position'
+    the position rows."""
+    n = len(points)
+    H = np.broadcast_to(np.eye(6), (n, 6, 6))
+    if mode == "finite-difference-white":
+        z, R, mask = finite_difference_measurement(points, times, count, sigmas)
+        return z, H, R, mask
+    z, _, mask = finite_difference_measurement(points, times, count, 1.0)
+    if mode == "finite-difference":
+        z[:, :2] = new_detection(z, points, times, count, mask)
+    R = np.zeros((n, 6, 6))
+    R[:, [0, 1], [0, 1]] = sigmas[:, 0] ** 2
+    return z, H, R, _rows(count, position_only=True)
+
+
+def new_detection(z: np.ndarray, points: np.ndarray, times: np.ndarray, count: np.ndarray,
+                  mask: np.ndarray) -> np.ndarray:
+    """The new detection p_k = D0+ (z - c) recovered from the seed's measurement z (N, 6)
+    over its present rows `mask`, with c = D1 p_{k-1} + D2 p_{k-2} from the detections
+    already assimilated (module docstring); (N, 2)."""
+    n = len(z)
+    D = _operator(times, count)
+    c = np.einsum("nij,njd->nid", D[:, :, 1:], points[:, 1:]).reshape(n, 6)
+    d0 = np.repeat(D[:, :, 0], 2, axis=1) * mask           # rows (p, v, a) x (x, y)
+    num = (d0 * (z - c)).reshape(n, 3, 2).sum(axis=1)
+    return num / (d0**2).reshape(n, 3, 2).sum(axis=1)
+
+
+def _spacings(times: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    # Unused spacings get a harmless placeholder; their rows are masked out.
+    h1 = np.where(count >= 2, times[:, 0] - times[:, 1], 1.0)
+    h2 = np.where(count >= 3, times[:, 1] - times[:, 2], 1.0)
+    return h1, h2
+
+
+def _operator(times: np.ndarray, count: np.ndarray) -> np.ndarray:
+    return difference_operator(*_spacings(times, count))
+
+
+def _rows(count: np.ndarray, position_only: bool) -> np.ndarray:
     rows = np.repeat(np.arange(3), 2)[None, :]                # derivative order of each row
     order = np.minimum(count, 1 if position_only else 3)[:, None]
-    mask = rows < order
-    return z, R, mask
+    return rows < order
 
 
-def nested_centre(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: float
+def box_centre(pred: np.ndarray, pos_var: np.ndarray, size: np.ndarray,
+               size_var: np.ndarray, boxes: np.ndarray, whole: np.ndarray,
+               sigma: np.ndarray, k: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
+    """A detected box as a measurement (z, var) of a track's centre (K, 2 each), per axis:
+
+    - a side that shows the whole vehicle (`whole`, box_size.py): the box's centre, variance
+      sigma^2;
+    - else, one edge where the track expects it (within k standard deviations: the centre's
+      variance pos_var, the size's size_var / 4 px^2 and sigma^2) while the other lies
+      inside the track's box: that side is hidden (an occluder, the image border), and the
+      centre is the seen edge -/+ s/2 (variance sigma^2 + size_var / 4);
+    - else the boxes are only nested (nested_centre).
+    """
+    lo_box, hi_box = boxes[:, :2], boxes[:, :2] + boxes[:, 2:]
+    lo_p, hi_p = pred - size / 2, pred + size / 2
+    tol = k * np.sqrt(pos_var + size_var / 4 + sigma**2)
+    seen_lo = (np.abs(lo_box - lo_p) <= tol) & (hi_box < hi_p - tol)
+    seen_hi = (np.abs(hi_box - hi_p) <= tol) & (lo_box > lo_p + tol)
+    z, var = nested_centre(pred, size, boxes, sigma)
+    one = sigma**2 + size_var / 4
+    z = np.where(seen_lo, lo_box + size / 2, np.where(seen_hi, hi_box - size / 2, z))
+    var = np.where(seen_lo | seen_hi, one, var)
+    z = np.where(whole, (lo_box + hi_box) / 2, z)
+    var = np.where(whole, sigma**2, var)
+    return z, var
+
+
+def nested_centre(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """A detected box as a measurement (z, var) of a track's centre (K, 2 each).
 
@@ -71,8 +169,8 @@ def nested_centre(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: 
     puts the vehicle's centre in the interval between d0 + s/2 and d1 - s/2 (detection
     [d0, d1], track box size s), of length |w_det - s|; for a detection of the vehicle's size
     it is the detection's centre. z is the prediction clipped to that interval and its
-    variance is the detector's sigma^2 plus that of a uniform spread over the interval,
-    L^2 / 12.
+    variance is the detector's sigma^2 (K, 2) plus that of a uniform spread over the
+    interval, L^2 / 12.
     """
     half = size / 2
     a = boxes[:, :2] + half
@@ -80,3 +178,10 @@ def nested_centre(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: 
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     z = np.clip(pred, lo, hi)
     return z, sigma**2 + (hi - lo) ** 2 / 12.0
+
+
+def border_cut(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(K, 2, 2): which edges (axis x low/high) of boxes (x, y, w, h) lie on the image
+    border, where the vehicle may go on beyond the picture."""
+    lo, hi = boxes[:, :2], boxes[:, :2] + boxes[:, 2:]
+    return np.stack([lo <= 0.5, hi >= np.array([width, height]) - 0.5], axis=2)

@@ -14,11 +14,16 @@ class TrackTable:
 
     x: np.ndarray          # (N, 6) filtered [x, y, vx, vy, ax, ay] of the box centre
     P: np.ndarray          # (N, 6, 6) its covariance
-    size: np.ndarray       # (N, 2) box width and height, px
+    s: np.ndarray          # (N, 4) [ln w, ln h, d ln w/dt, d ln h/dt] of the box (box_size.py)
+    Ps: np.ndarray         # (N, 4, 4) its covariance
+    mismatch_t: np.ndarray     # (N, 2) since when detections disagree with the size
+    mismatch_sign: np.ndarray  # (N, 2) in which direction (+1 larger, -1 smaller, 0 none)
+    ref_p: np.ndarray      # (N, 2) a whole-vehicle box's centre kept for the scale field
+    ref_s: np.ndarray      # (N,) and its scale (nan: none yet)
     origin: np.ndarray     # (N, 2) the first detected centre
     hist_p: np.ndarray     # (N, 3, 2) last three detected centres, newest first
     hist_t: np.ndarray     # (N, 3) their times
-    hist_s: np.ndarray     # (N, 3, 2) their stds (see measurements.nested_centre)
+    hist_s: np.ndarray     # (N, 3, 2) their stds
     count: np.ndarray      # (N,) detections so far, capped at 3 (for the differences)
     hitmask: np.ndarray    # (N,) bit i: detected i frames ago
     misses: np.ndarray     # (N,) frames since the last detection
@@ -31,8 +36,8 @@ class TrackTable:
     @classmethod
     def empty(cls) -> TrackTable:
         """A table without tracks."""
-        return cls(**{f.name: np.zeros((0,) + shape, dtype=dtype)
-                      for f, (shape, dtype) in zip(fields(cls), _LAYOUT, strict=True)})
+        return cls(**{name: np.zeros((0,) + shape, dtype=dtype)
+                      for name, (shape, dtype) in _LAYOUT.items()})
 
     def __len__(self) -> int:
         return len(self.x)
@@ -49,6 +54,32 @@ class TrackTable:
                                                   getattr(other, f.name)]))
 
     @property
+    def size(self) -> np.ndarray:
+        """(N, 2) box width and height, px."""
+        return np.exp(self.s[:, :2])
+
+    @property
+    def scale(self) -> np.ndarray:
+        """(N,) box scale sqrt(w h), px: the unit of the scale-free parameters."""
+        return np.exp(self.s[:, :2].mean(axis=1))
+
+    def warp(self, m: np.ndarray) -> None:
+        """Move every track with the camera: m (2, 3) maps the previous frame's pixels onto
+        the current frame's (p' = A p + b). Positions map by m; velocities, accelerations
+        and the covariance by A (P' = T P T', T = I3 (x) A); sizes scale by sqrt|det A|."""
+        A, b = m[:, :2], m[:, 2]
+        T = np.kron(np.eye(3), A)
+        self.x = self.x @ T.T
+        self.x[:, :2] += b
+        self.P = T @ self.P @ T.T
+        scale = float(np.sqrt(abs(np.linalg.det(A))))
+        self.s[:, :2] += np.log(scale)
+        self.hist_s = self.hist_s * scale
+        self.origin = self.origin @ A.T + b
+        self.hist_p = self.hist_p @ A.T + b
+        self.gap_p = self.gap_p @ A.T + b
+
+    @property
     def confirmed(self) -> np.ndarray:
         """Indices of the confirmed tracks."""
         return np.flatnonzero(self.id > 0)
@@ -63,6 +94,11 @@ class TrackTable:
         return np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)
 
 
-_LAYOUT = (((6,), float), ((6, 6), float), ((2,), float), ((2,), float), ((3, 2), float),
-           ((3,), float), ((3, 2), float), ((), int), ((), np.int64), ((), int), ((), bool),
-           ((), int), ((), int), ((2,), float), ((), float))
+_LAYOUT = {  # per-track shape and dtype of each column
+    "x": ((6,), float), "P": ((6, 6), float), "s": ((4,), float), "Ps": ((4, 4), float),
+    "mismatch_t": ((2,), float), "mismatch_sign": ((2,), float), "ref_p": ((2,), float),
+    "ref_s": ((), float), "origin": ((2,), float), "hist_p": ((3, 2), float),
+    "hist_t": ((3,), float), "hist_s": ((3, 2), float), "count": ((), int),
+    "hitmask": ((), np.int64), "misses": ((), int), "killed": ((), bool), "id": ((), int),
+    "uid": ((), int), "gap_p": ((2,), float), "gap_t": ((), float),
+}

@@ -3,7 +3,8 @@ stepped together as arrays through the shared core.
 
 The tracker is composed of roles, each in its own module:
 - the track table (table.py): every track's state as parallel arrays;
-- the filter bank (filter_bank.py): predict and update all tracks' filters;
+- the filter bank (filter_bank.py): predict and update all tracks' centre filters;
+- the box size filter (box_size.py): every track's width and height with their rates;
 - the associator (associator.py): fragments, gating and assignment, shared blobs,
   re-acquisition;
 - the measurement (measurements.py): the nested-box centre and seed 001's finite
@@ -18,13 +19,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.tracking.associator import Association, Associator
+from vtrack.tracking.associator import Association, Associator, detection_sigma
+from vtrack.tracking.box_size import BoxSizeFilter
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
 from vtrack.tracking.lifecycle import Confirmer, Initiator, fate, record_hits
-from vtrack.tracking.measurements import finite_difference_measurement, nested_centre
+from vtrack.tracking.measurements import border_cut, box_centre, measurement_model
 from vtrack.tracking.reporter import ROW_COLUMNS, RowReporter
+from vtrack.tracking.scale_field import ScaleField
 from vtrack.tracking.table import TrackTable
+
+_IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+def _overlap(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Intersection area of `box` with each of `boxes` (x, y, w, h)."""
+    w = np.minimum(box[0] + box[2], boxes[:, 0] + boxes[:, 2]) - np.maximum(box[0], boxes[:, 0])
+    h = np.minimum(box[1] + box[3], boxes[:, 1] + boxes[:, 3]) - np.maximum(box[1], boxes[:, 1])
+    return np.clip(w, 0, None) * np.clip(h, 0, None)
+
 
 __all__ = ["ADAPTIVE_KINDS", "ROW_COLUMNS", "FrameTracks", "Tracker", "TrackerConfig"]
 
@@ -38,57 +50,69 @@ class FrameTracks:
     coasted: np.ndarray        # (K,) True when no detection updated the track this frame
     states: np.ndarray         # (K, 6) posterior [x, y, vx, vy, ax, ay]
     covariances: np.ndarray    # (K, 6, 6)
-    innovations: np.ndarray    # (K,) |position innovation| in px (nan when coasted)
+    innovations: np.ndarray    # (K,) NIS of this frame's update (nan when coasted)
     rows: np.ndarray           # (R, 7) ROW_COLUMNS to write (incl. rows back-filled later)
     detection_of: np.ndarray   # (K,) index of the detection used (-1 when coasted)
-    size_rates: np.ndarray     # (K, 2) d(w, h)/dt of the box, px/s (0 while size is not filtered)
+    size_rates: np.ndarray     # (K, 2) d(w, h)/dt of the box, px/s
 
 
 class Tracker:
     """Array-based multi-target tracker. Call `step(frame, t, centers, boxes)` every frame."""
 
-    def __init__(self, cfg: TrackerConfig, width: int, height: int) -> None:
+    def __init__(self, cfg: TrackerConfig, width: int, height: int, fps: float = 25.0
+                 ) -> None:
         cfg.validate()
         self.cfg = cfg
         self.width, self.height = width, height
         self.tracks = TrackTable.empty()
         self.bank = FilterBank(cfg)
+        self.sizes = BoxSizeFilter(cfg.size_psd, cfg.size_sigma, cfg.size_rate_seconds,
+                                   cfg.size_gate_probability,
+                                   (cfg.size_grow_seconds, cfg.size_shrink_seconds))
+        self.field = ScaleField(width, height)
         self.associator = Associator(cfg, width, height)
-        self.initiator = Initiator(cfg)
-        self.confirmer = Confirmer(cfg)
+        self.initiator = Initiator()
+        self.confirmer = Confirmer(cfg, fps)
         self.reporter = RowReporter(cfg.max_coast_seconds)
         self.t_prev: float | None = None
 
     def __len__(self) -> int:
         return len(self.tracks)
 
-    def step(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray) -> FrameTracks:
-        """Advance all tracks to time t (s) and assimilate this frame's detections."""
+    def step(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
+             motion: np.ndarray | None = None) -> FrameTracks:
+        """Advance all tracks to time t (s) and assimilate this frame's detections; `motion`
+        (2, 3) is the camera's, mapping the previous frame's pixels onto this frame's."""
         centers = np.asarray(centers, dtype=float).reshape(-1, 2)
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
         dt = 0.0 if self.t_prev is None else t - self.t_prev
         self.t_prev = t
         tracks = self.tracks
+        if motion is not None and len(tracks) and not np.allclose(motion, _IDENTITY):
+            self.bank.warp(tracks, motion)
+        growth = self.field.log_rate(tracks.x[:, :2], tracks.x[:, 2:4])
         self.bank.predict(tracks, dt)
+        tracks.s, tracks.Ps = self.sizes.predict(tracks.s, tracks.Ps, dt, growth)
         a = self.associator.associate(tracks, t, centers, boxes)
         tracks.killed[a.duplicates] = True
         innov = np.full(len(tracks), np.nan)
-        innov[a.tracks] = self._update(a, t)
+        innov[a.tracks] = self._update(a.tracks, a.boxes[a.detections], t, a.split[a.tracks])
         hit = np.zeros(len(tracks), dtype=bool)
         hit[a.tracks] = True
-        record_hits(tracks, hit, self.cfg.confirm_window)
         det_of = np.full(len(tracks), -1)
         det_of[a.tracks] = a.detections
 
         conf_boxes = tracks.boxes(self.width, self.height)[tracks.id > 0]
-        new, started = self.initiator.start(t, a.centers, a.boxes,
-                                            np.concatenate([a.detections, a.consumed]),
-                                            conf_boxes)
-        self.bank.start(new.uid, new.x, self.initiator.P0)
-        tracks.append(new)
-        innov = np.concatenate([innov, np.full(len(new), np.nan)])
+        started = self.initiator.select(a.centers, np.concatenate([a.detections, a.consumed]),
+                                        conf_boxes)
+        n_old = len(tracks)
+        self._start(t, a.centers[started], a.boxes[started])
+        new = np.arange(n_old, len(tracks))
+        innov = np.concatenate([innov, self._update(new, a.boxes[started], t,
+                                                    np.zeros(len(new), dtype=bool))])
         det_of = np.concatenate([det_of, started])
         hit = np.concatenate([hit, np.ones(len(new), dtype=bool)])
+        record_hits(tracks, hit, self.confirmer.window)
 
         inside, alive = fate(tracks, t, self.width, self.height, self.cfg)
         self.confirmer.confirm(tracks, hit, inside & alive)
@@ -104,41 +128,70 @@ class Tracker:
                            coasted=~hit[conf], states=tracks.x[conf].copy(),
                            covariances=tracks.P[conf].copy(), innovations=innov[conf],
                            rows=rows, detection_of=det_of[conf],
-                           size_rates=np.zeros((int(conf.sum()), 2)))
+                           size_rates=tracks.size[conf] * tracks.s[conf, 2:])
 
-    def _update(self, a: Association, t: float) -> np.ndarray:
-        """Update the tracks of association `a` with their detected boxes at time t (seed 001
-        eqs. 24-26); returns their |position innovation| (px)."""
-        cfg, tracks, mt = self.cfg, self.tracks, a.tracks
+    def _start(self, t: float, centers: np.ndarray, boxes: np.ndarray) -> None:
+        """Append tentative tracks on these detections (assimilated by _update next)."""
+        scale = np.sqrt(boxes[:, 2] * boxes[:, 3])
+        var = np.repeat(detection_sigma(self.cfg, scale)[:, None] ** 2, 2, axis=1)
+        x0, P0 = self.bank.prior(centers, scale)
+        s0, Ps0 = self.sizes.initial(boxes[:, 2:], self.cfg.init_size_rate_sigma)
+        new = self.initiator.table(t, centers, x0, P0, s0, Ps0)
+        self.bank.start(new.uid, x0, var, scale)
+        self.tracks.append(new)
+
+    def _learn_scale(self, idx: np.ndarray, boxes: np.ndarray) -> None:
+        """Feed the scale field with whole-vehicle boxes of confirmed tracks whose box
+        overlaps no other track's: a pair once the track has moved half a box scale."""
+        tracks = self.tracks
+        conf = tracks.id[idx] > 0
+        idx, boxes = idx[conf], boxes[conf]
+        if len(idx) == 0:
+            return
+        all_boxes = tracks.boxes(self.width, self.height)
+        alone = np.array([np.count_nonzero(_overlap(all_boxes[i], all_boxes) > 0) == 1
+                          for i in idx], dtype=bool)
+        idx, boxes = idx[alone], boxes[alone]
+        p = boxes[:, :2] + boxes[:, 2:] / 2
+        sc = np.sqrt(boxes[:, 2] * boxes[:, 3])
+        ref = tracks.ref_s[idx]
+        far = np.hypot(*(p - tracks.ref_p[idx]).T) >= 0.5 * np.fmin(sc, ref)
+        pair = np.isfinite(ref) & far
+        self.field.add(tracks.ref_p[idx[pair]], ref[pair], p[pair], sc[pair])
+        new = ~np.isfinite(ref) | pair
+        tracks.ref_p[idx[new]], tracks.ref_s[idx[new]] = p[new], sc[new]
+
+    def _update(self, mt: np.ndarray, boxes: np.ndarray, t: float, split: np.ndarray
+                ) -> np.ndarray:
+        """Update tracks `mt` with their detected boxes at time t: the box size where the
+        detection shows the whole vehicle (box_size.py; a split track's size starts again
+        from its piece), the centre from the nested boxes (seed 001 eqs. 24-26). Returns
+        the NIS."""
+        cfg, tracks = self.cfg, self.tracks
         if len(mt) == 0:
             return np.zeros(0)
-        boxes = a.boxes[a.detections]
-        centers, var = nested_centre(tracks.x[mt, :2], tracks.size[mt], boxes,
-                                     cfg.detection_sigma)
+        size, pos_var = tracks.size[mt], tracks.P[mt][:, [0, 1], [0, 1]]
+        size_var = self.sizes.px_var(tracks.s[mt], tracks.Ps[mt])
+        since = t - np.where(tracks.count[mt] > 0, tracks.hist_t[mt, 0], t)
+        speed = np.abs(tracks.x[mt, 2:4]) + 2 * np.sqrt(tracks.P[mt][:, [2, 3], [2, 3]])
+        reach = speed * since[:, None] + 2.0 * detection_sigma(cfg, tracks.scale[mt])[:, None]
+        whole = self.sizes.update(tracks, mt, boxes[:, 2:],
+                                  border_cut(boxes, self.width, self.height).any(axis=2),
+                                  reach, t)
+        self._learn_scale(mt[whole.all(axis=1) & ~split], boxes[whole.all(axis=1) & ~split])
+        if split.any():
+            k = mt[split]
+            s_new, Ps_new = self.sizes.initial(boxes[split, 2:], cfg.init_size_rate_sigma)
+            s_new[:, 2:], Ps_new[:, 2:, 2:] = tracks.s[k, 2:], tracks.Ps[k][:, 2:, 2:]
+            tracks.s[k], tracks.Ps[k] = s_new, Ps_new
+        sigma = detection_sigma(cfg, np.sqrt(size.prod(axis=1)))[:, None]
+        centers, var = box_centre(tracks.x[mt, :2], pos_var, size, size_var, boxes, whole,
+                                  sigma)
         for hist, newest in ((tracks.hist_s, np.sqrt(var)), (tracks.hist_p, centers),
                              (tracks.hist_t, t)):
             hist[mt, 1:] = hist[mt, :-1]  # fancy indexing copies before the write
             hist[mt, 0] = newest
         tracks.count[mt] = np.minimum(tracks.count[mt] + 1, 3)
-        z, R, mask = finite_difference_measurement(
-            tracks.hist_p[mt], tracks.hist_t[mt], tracks.count[mt], tracks.hist_s[mt],
-            position_only=cfg.measurement == "position")
-        innov = self.bank.update(tracks, mt, z, R, mask)
-        tracks.size[mt] = self._box_size(mt, boxes, a.split[mt])
-        return innov
-
-    def _box_size(self, mt: np.ndarray, boxes: np.ndarray, split: np.ndarray) -> np.ndarray:
-        """The updated box sizes of tracks `mt` given their detected boxes: a larger
-        detection weighs `size_smoothing`, a smaller `size_shrink` (it is often partly
-        hidden); growth per frame is capped (a blob that suddenly outgrows the vehicle is
-        usually several merged); a split track takes its piece's size at once."""
-        cfg, tracks = self.cfg, self.tracks
-        size = tracks.size[mt]
-        grow = boxes[:, 2:] > size
-        w = np.where(grow, cfg.size_smoothing, cfg.size_shrink)
-        new = w * boxes[:, 2:] + (1 - w) * size
-        # A vehicle coming into view at the border grows by about its displacement per frame.
-        dt = np.maximum(tracks.hist_t[mt, 0] - tracks.hist_t[mt, 1], 0.0)
-        step = np.abs(tracks.x[mt, 2:4]) * np.where(tracks.count[mt] >= 2, dt, 0.0)[:, None]
-        capped = np.minimum(new, size * (1 + cfg.max_size_growth) + step + 2.0)
-        return np.where(split[:, None], boxes[:, 2:], capped)
+        z, Hm, R, mask = measurement_model(tracks.hist_p[mt], tracks.hist_t[mt],
+                                           tracks.count[mt], tracks.hist_s[mt], cfg.measurement)
+        return self.bank.update(tracks, mt, z, Hm, R, mask)

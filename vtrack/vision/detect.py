@@ -41,6 +41,7 @@ from vtrack.vision.background import Mog2Background
 from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
 from vtrack.vision.shadows import drop_shadows
+from vtrack.vision.stabilise import IDENTITY, Stabiliser, compose, invert, rescale, transform_boxes
 
 __all__ = ["DetectorConfig", "Detections", "MotionDetector", "downscale_factor"]
 
@@ -80,6 +81,12 @@ class DetectorConfig:
                                  "start, stopped vehicles) are dropped; 0: off")
     roi_mask: str = _f("", "optional mask image (white = detect), resized to the frame")
     warmup_frames: int = _f(15, "first frames only teach the background (no detections)")
+    stabilise: bool = _f(True, "estimate the camera's sway per frame (similarity transform "
+                               "against a reference frame) and warp frames onto it before "
+                               "background subtraction; the tracker shifts its tracks by the "
+                               "same motion. Switches itself off on a still camera")
+    stabilise_still_px: float = _f(0.5, "a camera whose image corners move less than this "
+                                         "(detection pixels) over the first 2 s is still")
 
     def validate(self) -> None:
         """Raise ValueError naming the first out-of-range field."""
@@ -100,6 +107,7 @@ class DetectorConfig:
             "min_fill": 0 <= self.min_fill <= 1,
             "min_motion": 0 <= self.min_motion <= 1,
             "warmup_frames": self.warmup_frames >= 0,
+            "stabilise_still_px": self.stabilise_still_px >= 0,
         }
         for name, ok in checks.items():
             if not ok:
@@ -113,20 +121,23 @@ class Detections:
     centers: np.ndarray  # (K, 2) box centres x, y
     boxes: np.ndarray    # (K, 4) x, y, w, h
     areas: np.ndarray    # (K,) foreground pixel count, px^2
+    # (2, 3) camera motion: maps the previous frame's pixels onto this frame's
+    motion: np.ndarray = field(default_factory=lambda: IDENTITY.copy())
 
     def __len__(self) -> int:
         return len(self.areas)
 
     @staticmethod
-    def empty() -> Detections:
+    def empty(motion: np.ndarray | None = None) -> Detections:
         """No blobs."""
-        return Detections(np.zeros((0, 2)), np.zeros((0, 4)), np.zeros(0))
+        return Detections(np.zeros((0, 2)), np.zeros((0, 4)), np.zeros(0),
+                          IDENTITY.copy() if motion is None else motion)
 
 
 class MotionDetector:
     """MOG2 detector for one video of a fixed frame size; call `detect` once per frame."""
 
-    def __init__(self, cfg: DetectorConfig, width: int, height: int) -> None:
+    def __init__(self, cfg: DetectorConfig, width: int, height: int, fps: float = 25.0) -> None:
         cfg.validate()
         self.cfg = cfg
         self.width, self.height = width, height
@@ -141,6 +152,10 @@ class MotionDetector:
         roi = load_roi(cfg.roi_mask, size) if cfg.roi_mask else None
         self.clean = MaskCleaner(roi, cfg.open_kernel, cfg.close_kernel)
         self.motion = MotionMap() if cfg.min_motion > 0 else None
+        self.stabiliser = (Stabiliser(*size, probe_frames=max(1, round(2.0 * fps)),
+                                      still_px=cfg.stabilise_still_px)
+                           if cfg.stabilise else None)
+        self._camera = IDENTITY.copy()   # reference -> current frame, full resolution
         self.foreground: np.ndarray | None = None
 
     @property
@@ -152,6 +167,12 @@ class MotionDetector:
         """Update the background with `image` (HxWx3 BGR uint8) and return its blobs."""
         cfg = self.cfg
         small = self.prepare(image)
+        motion = IDENTITY
+        if self.stabiliser is not None:
+            small, m = self.stabiliser(small)
+            camera = rescale(m, self._sx, self._sy)
+            motion = compose(camera, invert(self._camera))
+            self._camera = camera
         if self.gain is not None:
             small = self.gain(small)
         raw = self.background.apply(small)
@@ -160,9 +181,10 @@ class MotionDetector:
         if self.motion is not None:
             moving = self.motion(small if small is not image else image.copy())
         if self.frames <= cfg.warmup_frames:
-            return Detections.empty()
+            return Detections.empty(motion)
         boxes, areas = find_blobs(self.foreground, moving, self._sx, self._sy,
                                   cfg.min_pixels, cfg.min_area,
                                   cfg.max_area_fraction * self.width * self.height,
                                   cfg.min_fill, cfg.min_motion)
-        return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas)
+        boxes = transform_boxes(self._camera, boxes)  # the reference's pixels -> this frame's
+        return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas, motion)
