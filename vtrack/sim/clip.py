@@ -1,0 +1,345 @@
+"""Renders a perspective scene preset into OUT_DIR: video.avi, gt.csv, world.csv and
+calibration.toml (`vtrack synth --scene mast|side|junction`).
+
+Each frame: the pre-painted background (road plane, far scenery, street furniture), the signal
+lamps of the moment, the shadows of vehicles and tree crowns on the road, the vehicles far to
+near, then the street furniture again wherever it is nearer than the vehicle under it, then
+the tree crowns. The frame is drawn on a canvas a few pixels larger than the image and cut out
+at the camera shake's offset; then exposure and sensor noise are applied and MJPG encodes it.
+The ground truth comes from the same id buffer (vtrack.sim.groundtruth).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vtrack.errors import InputError
+from vtrack.fileio import write_text
+from vtrack.sim import props
+from vtrack.sim.camera import Camera
+from vtrack.sim.dynamics import Drivers, Motion, simulate
+from vtrack.sim.ground import paint_ground
+from vtrack.sim.groundtruth import (IdBook, Seen, calibration_toml, choose_landmarks,
+                                    format_world, frame_rows)
+from vtrack.sim.nuisance import Exposure, NoiseBank, shake_offsets
+from vtrack.sim.output import check_settings, format_gt, write_video
+from vtrack.sim.paths import PathSet
+from vtrack.sim.population import default_count, populate
+from vtrack.sim.render import (Buffers, CrownSprite, Light, Placed, darken, draw_all,
+                               shadow_polygons, silhouette)
+from vtrack.sim.scenes import Layout, build_layout
+from vtrack.sim.shapes import place
+from vtrack.sim.vehicles import Vehicle
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A preset drawn from the seed: layout, light, traffic and its simulated motion."""
+
+    name: str
+    layout: Layout
+    light: Light
+    paths: PathSet
+    drivers: Drivers
+    fleet: tuple[Vehicle, ...]
+    motion: Motion
+    fps: float
+    nuisances: frozenset[str]
+
+    @property
+    def frames(self) -> int:
+        """Number of video frames."""
+        return self.motion.s.shape[1]
+
+    def poses(self, n: int) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray],
+                                     np.ndarray]:
+        """The vehicles on the road in frame n, their units' road-plane origins (U, 2) and
+        headings (U,), and their footprint centres (K, 2). A unit spans the arc lengths
+        [s - rear, s - front] and points from its rear to its front; the centre is halfway
+        between the vehicle's front and rear."""
+        active = np.nonzero(~np.isnan(self.motion.s[:, n]))[0]
+        ends, owner = [], []
+        for k in active:
+            veh, s = self.fleet[k], self.motion.s[k, n]
+            ends.append(np.append(s - veh.units.ravel(), [s, s - veh.length]))
+            owner.append(np.full(len(ends[-1]), self.drivers.path[k]))
+        if not len(active):
+            return active, [], [], np.zeros((0, 2))
+        pts, _ = self.paths.pose(np.concatenate(owner), np.concatenate(ends))
+        origins, headings, centres = [], [], []
+        i = 0
+        for k in active:
+            u = len(self.fleet[k].units)
+            front, rear = pts[i:i + 2 * u:2], pts[i + 1:i + 2 * u:2]
+            d = front - rear
+            origins.append(rear)
+            headings.append(np.arctan2(d[:, 1], d[:, 0]))
+            centres.append(pts[i + 2 * u:i + 2 * u + 2].mean(0))
+            i += 2 * u + 2
+        return active, origins, headings, np.array(centres)
+
+
+def draw_light(rng: np.random.Generator) -> Light:
+    """The sun from any azimuth 20-65 degrees up; one clip in five is overcast."""
+    az, el = rng.uniform(0, 2 * np.pi), math.radians(rng.uniform(20, 65))
+    sun = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    if rng.random() < 0.2:
+        return Light(sun, 0.85, 0.2, rng.uniform(0.82, 0.9))
+    return Light(sun, rng.uniform(0.5, 0.65), rng.uniform(0.4, 0.6), rng.uniform(0.42, 0.65))
+
+
+def build_scene(name: str, frames: int, vehicles: int | None, width: int, height: int,
+                fps: float, seed: int, nuisances: frozenset[str]) -> Scene:
+    """Draw preset `name` from the seed and simulate its traffic."""
+    rng_layout, rng_traffic, rng_light = (np.random.default_rng(s) for s in
+                                          np.random.SeedSequence(seed).spawn(3))
+    layout = build_layout(name, rng_layout, width, height, "parked" in nuisances)
+    paths = PathSet(layout.paths)
+    duration = frames / fps
+    count = default_count(rng_traffic, layout, duration) if vehicles is None else vehicles
+    drivers, fleet, t_start = populate(rng_traffic, layout, duration, count,
+                                       "inview" in nuisances, "parked" in nuisances,
+                                       "mix" in nuisances)
+    motion = simulate(paths, drivers, layout.signals, frames, fps, t_start)
+    return Scene(name, layout, draw_light(rng_light), paths, drivers, fleet, motion, fps,
+                 nuisances)
+
+
+class ClipRenderer:
+    """Frames and ground truth of a scene, in order (module docstring)."""
+
+    def __init__(self, scene: Scene, seed: int) -> None:
+        self.scene = scene
+        on = scene.nuisances
+        rng_tex, rng_shake, rng_exp, rng_noise, rng_crown = (
+            np.random.default_rng(s) for s in np.random.SeedSequence([seed, 1]).spawn(5))
+        cam0 = scene.layout.camera
+        scale = cam0.width / 640
+        self.shake = (shake_offsets(rng_shake, scene.frames, scene.fps, scale) if "shake" in on
+                      else np.zeros((scene.frames, 2)))
+        self.margin = int(math.ceil(np.abs(self.shake).max())) + 1 if "shake" in on else 0
+        self.camera = cam0.padded(self.margin)
+        background, beyond = paint_ground(self.camera, scene.layout.ground, rng_tex)
+        self.crowns = sorted((CrownSprite(c, self.camera, scene.light, rng_crown)
+                              for c in scene.layout.crowns), key=lambda c: -c.depth)
+        self.sway = "vegetation" in on
+        self.shadows = "shadows" in on
+        scenery = ([Placed(m, m.points, m.face_normal, 0) for m in scene.layout.meshes])
+        self.dapple = _dapple(rng_crown, background.shape[:2])
+        if self.shadows:
+            mask = np.zeros(background.shape[:2], np.uint8)
+            for poly in shadow_polygons(self.camera, scene.light, scenery):
+                cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, 4)
+            if not self.sway:
+                self._crown_shadows(mask, 0.0)
+            mask[beyond] = 0
+            darken(background, mask, scene.light.shadow)
+        buf = Buffers.start(background)
+        scenery.sort(key=lambda p: -float(self.camera.distance(p.world.mean(0))))
+        draw_all(buf, self.camera, scene.light, scenery)
+        self.static_depth = np.where(beyond, np.float32(scene.layout.ground.far_m), buf.depth)
+        self.static_mask = np.isfinite(self.static_depth)
+        self.no_ids = np.zeros(self.static_depth.shape, np.int32)
+        self.radius = np.array([math.hypot(v.length / 2, v.width / 2, v.height) + 0.5
+                                for v in scene.fleet])
+        self.background = buf.image
+        self.lit = self.background
+        self.lamp_state: tuple | None = None
+        self.exposure = Exposure(rng_exp, scene.fps) if "exposure" in on else None
+        sigma = rng_noise.uniform(1.5, 3.5) if "noise" in on else 0.0
+        self.noise = (NoiseBank(rng_noise, (cam0.height, cam0.width, 3), sigma)
+                      if "noise" in on else None)
+
+    def _lamps(self, t: float) -> np.ndarray:
+        """The background with the signal lamps lit for time t (redrawn when they change)."""
+        signals = self.scene.layout.signals
+        if signals is None or not self.scene.layout.lamps:
+            return self.background
+        state = tuple(signals.state(t).tolist())
+        if state != self.lamp_state:
+            self.lamp_state, self.lit = state, self.background.copy()
+            for lamp in self.scene.layout.lamps:
+                if state[lamp.group] != lamp.aspect:
+                    continue
+                cam = self.camera.to_camera(lamp.polygon)
+                facing = np.dot(lamp.normal, self.camera.centre - lamp.polygon.mean(0)) > 0
+                if facing and cam[:, 2].min() > 0.3:
+                    pts = np.round(self.camera.pixels(cam) * 16).astype(np.int32)
+                    cv2.fillConvexPoly(self.lit, pts, props.LAMP_COLOURS[lamp.aspect],
+                                       cv2.LINE_AA, 4)
+        return self.lit
+
+    def frames(self) -> Iterator[tuple[np.ndarray, list[tuple[int, int, int, int, int, float]]]]:
+        """(image, rows) per frame: rows are (vehicle index, left, top, width, height,
+        visible) of the vehicles at least partly in view."""
+        scene = self.scene
+        cam, light = self.camera, scene.light
+        w, h = scene.layout.camera.width, scene.layout.camera.height
+        for n in range(scene.frames):
+            t = n / scene.fps
+            base = self._lamps(t)
+            buf = Buffers.start(base)
+            active, origins, headings, centres = scene.poses(n)
+            keep = _in_view(cam, centres, self.radius[active])
+            active, centres = active[keep], centres[keep]
+            origins = [o for o, k in zip(origins, keep) if k]
+            headings = [h for h, k in zip(headings, keep) if k]
+            dist = cam.distance(np.column_stack([centres, np.ones(len(active))]))
+            placed = [Placed(scene.fleet[k].mesh, *place(scene.fleet[k].mesh, origins[i],
+                                                         headings[i]), int(k) + 1)
+                      for i, k in ((i, active[i]) for i in np.argsort(-dist, kind="stable"))]
+            if self.shadows:
+                self._cast_shadows(buf, placed, t)
+            seen = []
+            for obj, hulls in zip(placed, draw_all(buf, cam, light, placed)):
+                if hulls and _near_view(hulls, cam):
+                    area, box = silhouette(hulls)
+                    seen.append(Seen(obj.ident - 1, area, box))
+            front = cv2.compare(self.static_depth, buf.depth, cv2.CMP_LT)
+            cv2.copyTo(base, front, buf.image)
+            cv2.copyTo(self.no_ids, front, buf.ids)
+            np.minimum(buf.depth, self.static_depth, out=buf.depth)
+            for crown in self.crowns:
+                crown.draw(buf, t, self.sway)
+            ox, oy = int(round(self.margin + self.shake[n, 0])), int(round(self.margin
+                                                                            + self.shake[n, 1]))
+            image = self._camera_out(buf.image, n, w, h)
+            rows = frame_rows(sorted(seen, key=lambda s: s.vehicle), buf.ids[oy:oy + h, ox:ox + w],
+                              (ox, oy), len(scene.fleet))
+            yield image, rows
+
+    def _cast_shadows(self, buf: Buffers, placed: list[Placed], t: float) -> None:
+        """Darken the road under the shadows of the vehicles (and swaying crowns)."""
+        mask = np.zeros(buf.ids.shape, np.uint8)
+        for poly in shadow_polygons(self.camera, self.scene.light, placed):
+            cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, 4)
+        if self.sway:
+            self._crown_shadows(mask, t)
+        mask[self.static_mask] = 0
+        darken(buf.image, mask, self.scene.light.shadow)
+
+    def _crown_shadows(self, mask: np.ndarray, t: float) -> None:
+        """Add the crowns' shadows at time t to a shadow mask, dappled by light through the
+        leaves."""
+        leafy = np.zeros_like(mask)
+        for crown in self.crowns:
+            poly = crown.shadow(self.camera, self.scene.light, t, self.sway)
+            if poly is not None:
+                cv2.fillConvexPoly(leafy, poly, 1, cv2.LINE_AA, 4)
+        mask |= leafy & self.dapple
+
+    def _camera_out(self, canvas: np.ndarray, n: int, w: int, h: int) -> np.ndarray:
+        """Cut the frame out of the canvas at the shake offset, then exposure and noise."""
+        dx, dy = self.margin + self.shake[n]
+        if self.margin:
+            img = cv2.getRectSubPix(canvas, (w, h), (dx + (w - 1) / 2, dy + (h - 1) / 2))
+        else:
+            img = canvas
+        if self.exposure is None and self.noise is None:
+            return img
+        out = img.astype(np.float32)
+        if self.exposure is not None:
+            small = cv2.resize(img, (max(1, w // 8), max(1, h // 8)), interpolation=cv2.INTER_AREA)
+            out *= np.float32(self.exposure.gain(float(small.mean())))
+        if self.noise is not None:
+            out += self.noise.sample()
+        np.clip(out, 0, 255, out=out)
+        return out.astype(np.uint8)
+
+
+def _dapple(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
+    """A fixed pattern of sun flecks: 1 where leaves block the sun, 0 in the flecks."""
+    raw = rng.standard_normal((shape[0] // 3 + 2, shape[1] // 3 + 2)).astype(np.float32)
+    smooth = cv2.resize(cv2.GaussianBlur(raw, (0, 0), 1.0), shape[::-1],
+                        interpolation=cv2.INTER_LINEAR)
+    return (smooth < 0.45 * smooth.std()).astype(np.uint8)
+
+
+def _in_view(camera: Camera, centres: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Which vehicles may show: a ball of `radius` around the footprint centre (raised by
+    1 m) in front of the camera whose projection meets the canvas."""
+    cam = camera.to_camera(np.column_stack([centres, np.ones(len(centres))]))
+    z = cam[:, 2]
+    far = z > radius + 0.5
+    px = camera.focal * cam[:, :2] / np.where(far, z, 1.0)[:, None]
+    reach = camera.focal * radius / np.maximum(z - radius, 0.5)
+    inside = ((px[:, 0] + camera.cx + reach >= 0) & (px[:, 0] + camera.cx - reach < camera.width)
+              & (px[:, 1] + camera.cy + reach >= 0)
+              & (px[:, 1] + camera.cy - reach < camera.height))
+    return np.where(far, inside, z > -radius)
+
+
+def _near_view(hulls: list[np.ndarray], camera: Camera) -> bool:
+    """Whether the silhouette's bounding box overlaps the canvas."""
+    pts = np.concatenate([p.reshape(-1, 2) for p in hulls]) >> 4
+    return bool(pts[:, 0].max() >= 0 and pts[:, 1].max() >= 0 and pts[:, 0].min() < camera.width
+                and pts[:, 1].min() < camera.height)
+
+
+@dataclass(frozen=True)
+class ClipResult:
+    """What `render_preset` wrote."""
+
+    video: Path
+    gt: Path
+    world: Path
+    calibration: Path
+    frames: int
+    width: int
+    height: int
+    vehicles: int
+    gt_rows: int
+    quality: int
+    seconds: float
+
+
+def render_preset(out_dir: str | os.PathLike, scene: str, frames: int = 300,
+                  vehicles: int | None = None, width: int = 640, height: int = 360,
+                  fps: float = 25.0, seed: int = 0, quality: int | None = None,
+                  nuisances: frozenset[str] = frozenset()) -> ClipResult:
+    """Write video.avi, gt.csv, world.csv and calibration.toml of a preset; all atomically."""
+    check_settings(frames, 0 if vehicles is None else vehicles, width, height, fps, seed,
+                   90 if quality is None else quality)
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a directory")
+    started = time.perf_counter()
+    sc = build_scene(scene, frames, vehicles, width, height, fps, seed, nuisances)
+    if quality is None:
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 2]))
+        quality = int(rng.integers(30, 71)) if "compression" in nuisances else 90
+    renderer = ClipRenderer(sc, seed)
+    book = IdBook()
+    gt, world = [], []
+
+    def video() -> Iterator[np.ndarray]:
+        for n, (image, rows) in enumerate(renderer.frames()):
+            for k, left, top, bw, bh, vis in rows:
+                gt.append((n + 1, book(k), left, top, bw, bh, 1, -1, -1, -1, vis))
+            active, _, _, centres = sc.poses(n) if rows else (None, None, None, None)
+            for k, *_ in rows:
+                x, y = centres[np.searchsorted(active, k)]
+                veh = sc.fleet[k]
+                world.append((n + 1, book(k), x, y, 3.6 * sc.motion.v[k, n], veh.length,
+                              veh.kind))
+            yield image
+
+    out.mkdir(parents=True, exist_ok=True)
+    write_video(out / "video.avi", video(), width, height, fps, quality)
+    gt_rows = np.array(sorted(gt, key=lambda r: (r[0], r[1])), float).reshape(-1, 11)
+    write_text(out / "gt.csv", format_gt(gt_rows))
+    write_text(out / "world.csv", format_world(sorted(world, key=lambda r: (r[0], r[1]))))
+    cam = sc.layout.camera
+    write_text(out / "calibration.toml",
+               calibration_toml(cam, choose_landmarks(cam, sc.layout.landmarks)))
+    return ClipResult(out / "video.avi", out / "gt.csv", out / "world.csv",
+                      out / "calibration.toml", frames, width, height, len(book.ids),
+                      len(gt_rows), quality, time.perf_counter() - started)
