@@ -27,10 +27,11 @@ from vtrack.sim import props
 from vtrack.sim.camera import Camera
 from vtrack.sim.dynamics import Drivers, Motion, simulate
 from vtrack.sim.ground import paint_ground
-from vtrack.sim.groundtruth import (IdBook, Seen, calibration_toml, choose_landmarks,
+from vtrack.sim.groundtruth import (IdBook, Row, Seen, calibration_toml, choose_landmarks,
                                     format_world, frame_rows)
 from vtrack.sim.nuisance import Exposure, NoiseBank, shake_offsets
-from vtrack.sim.output import check_settings, format_gt, write_video
+from vtrack.sim.avi import write_mjpeg_avi
+from vtrack.sim.output import check_settings, format_gt
 from vtrack.sim.paths import PathSet
 from vtrack.sim.population import default_count, populate
 from vtrack.sim.render import (Buffers, CrownSprite, Light, Placed, darken, draw_all,
@@ -138,10 +139,10 @@ class ClipRenderer:
             mask = np.zeros(background.shape[:2], np.uint8)
             for poly in shadow_polygons(self.camera, scene.light, scenery):
                 cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, 4)
-            if not self.sway:
-                self._crown_shadows(mask, 0.0)
             mask[beyond] = 0
             darken(background, mask, scene.light.shadow)
+            if not self.sway:
+                self._crown_shadows(background, 0.0, beyond)
         buf = Buffers.start(background)
         scenery.sort(key=lambda p: -float(self.camera.distance(p.world.mean(0))))
         draw_all(buf, self.camera, scene.light, scenery)
@@ -177,9 +178,8 @@ class ClipRenderer:
                                        cv2.LINE_AA, 4)
         return self.lit
 
-    def frames(self) -> Iterator[tuple[np.ndarray, list[tuple[int, int, int, int, int, float]]]]:
-        """(image, rows) per frame: rows are (vehicle index, left, top, width, height,
-        visible) of the vehicles at least partly in view."""
+    def frames(self) -> Iterator[tuple[np.ndarray, list[Row]]]:
+        """(image, rows) per frame: the rows of the vehicles at least partly in view."""
         scene = self.scene
         cam, light = self.camera, scene.light
         w, h = scene.layout.camera.width, scene.layout.camera.height
@@ -198,11 +198,12 @@ class ClipRenderer:
                       for i, k in ((i, active[i]) for i in np.argsort(-dist, kind="stable"))]
             if self.shadows:
                 self._cast_shadows(buf, placed, t)
+            centre_of = dict(zip(active.tolist(), map(tuple, centres.tolist())))
             seen = []
             for obj, hulls in zip(placed, draw_all(buf, cam, light, placed)):
                 if hulls and _near_view(hulls, cam):
                     area, box = silhouette(hulls)
-                    seen.append(Seen(obj.ident - 1, area, box))
+                    seen.append(Seen(obj.ident - 1, area, box, centre_of[obj.ident - 1]))
             front = cv2.compare(self.static_depth, buf.depth, cv2.CMP_LT)
             cv2.copyTo(base, front, buf.image)
             cv2.copyTo(self.no_ids, front, buf.ids)
@@ -213,7 +214,7 @@ class ClipRenderer:
                                                                             + self.shake[n, 1]))
             image = self._camera_out(buf.image, n, w, h)
             rows = frame_rows(sorted(seen, key=lambda s: s.vehicle), buf.ids[oy:oy + h, ox:ox + w],
-                              (ox, oy), len(scene.fleet))
+                              (ox, oy))
             yield image, rows
 
     def _cast_shadows(self, buf: Buffers, placed: list[Placed], t: float) -> None:
@@ -221,20 +222,22 @@ class ClipRenderer:
         mask = np.zeros(buf.ids.shape, np.uint8)
         for poly in shadow_polygons(self.camera, self.scene.light, placed):
             cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, 4)
-        if self.sway:
-            self._crown_shadows(mask, t)
         mask[self.static_mask] = 0
         darken(buf.image, mask, self.scene.light.shadow)
+        if self.sway:
+            self._crown_shadows(buf.image, t, self.static_mask)
 
-    def _crown_shadows(self, mask: np.ndarray, t: float) -> None:
-        """Add the crowns' shadows at time t to a shadow mask, dappled by light through the
-        leaves."""
-        leafy = np.zeros_like(mask)
+    def _crown_shadows(self, image: np.ndarray, t: float, exclude: np.ndarray) -> None:
+        """Darken the road (not the `exclude` pixels) under the crowns' shadows at time t:
+        dappled by the light through the leaves, and lighter than a solid body's shadow."""
+        mask = np.zeros(image.shape[:2], np.uint8)
         for crown in self.crowns:
             poly = crown.shadow(self.camera, self.scene.light, t, self.sway)
             if poly is not None:
-                cv2.fillConvexPoly(leafy, poly, 1, cv2.LINE_AA, 4)
-        mask |= leafy & self.dapple
+                cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, 4)
+        mask &= self.dapple
+        mask[exclude] = 0
+        darken(image, mask, math.sqrt(self.scene.light.shadow))
 
     def _camera_out(self, canvas: np.ndarray, n: int, w: int, h: int) -> np.ndarray:
         """Cut the frame out of the canvas at the shake offset, then exposure and noise."""
@@ -243,24 +246,18 @@ class ClipRenderer:
             img = cv2.getRectSubPix(canvas, (w, h), (dx + (w - 1) / 2, dy + (h - 1) / 2))
         else:
             img = canvas
-        if self.exposure is None and self.noise is None:
-            return img
-        out = img.astype(np.float32)
-        if self.exposure is not None:
-            small = cv2.resize(img, (max(1, w // 8), max(1, h // 8)), interpolation=cv2.INTER_AREA)
-            out *= np.float32(self.exposure.gain(float(small.mean())))
-        if self.noise is not None:
-            out += self.noise.sample()
-        np.clip(out, 0, 255, out=out)
-        return out.astype(np.uint8)
+        gain = 1.0 if self.exposure is None else self.exposure.gain(float(img[::8, ::8].mean()))
+        if self.noise is None:
+            return img if gain == 1.0 else cv2.convertScaleAbs(img, alpha=gain)
+        return cv2.addWeighted(img, gain, self.noise.sample(), 1.0, 0.0, dtype=cv2.CV_8U)
 
 
 def _dapple(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
     """A fixed pattern of sun flecks: 1 where leaves block the sun, 0 in the flecks."""
-    raw = rng.standard_normal((shape[0] // 3 + 2, shape[1] // 3 + 2)).astype(np.float32)
-    smooth = cv2.resize(cv2.GaussianBlur(raw, (0, 0), 1.0), shape[::-1],
+    raw = rng.standard_normal((shape[0] // 2 + 2, shape[1] // 2 + 2)).astype(np.float32)
+    smooth = cv2.resize(cv2.GaussianBlur(raw, (0, 0), 0.8), shape[::-1],
                         interpolation=cv2.INTER_LINEAR)
-    return (smooth < 0.45 * smooth.std()).astype(np.uint8)
+    return (smooth < 0.3 * smooth.std()).astype(np.uint8)
 
 
 def _in_view(camera: Camera, centres: np.ndarray, radius: np.ndarray) -> np.ndarray:
@@ -322,18 +319,16 @@ def render_preset(out_dir: str | os.PathLike, scene: str, frames: int = 300,
 
     def video() -> Iterator[np.ndarray]:
         for n, (image, rows) in enumerate(renderer.frames()):
-            for k, left, top, bw, bh, vis in rows:
-                gt.append((n + 1, book(k), left, top, bw, bh, 1, -1, -1, -1, vis))
-            active, _, _, centres = sc.poses(n) if rows else (None, None, None, None)
-            for k, *_ in rows:
-                x, y = centres[np.searchsorted(active, k)]
-                veh = sc.fleet[k]
-                world.append((n + 1, book(k), x, y, 3.6 * sc.motion.v[k, n], veh.length,
-                              veh.kind))
+            for r in rows:
+                veh, i = sc.fleet[r.vehicle], book(r.vehicle)
+                gt.append((n + 1, i, r.left, r.top, r.width, r.height, 1, -1, -1, -1,
+                           r.visible))
+                world.append((n + 1, i, *r.centre, 3.6 * sc.motion.v[r.vehicle, n],
+                              veh.length, veh.kind))
             yield image
 
     out.mkdir(parents=True, exist_ok=True)
-    write_video(out / "video.avi", video(), width, height, fps, quality)
+    write_mjpeg_avi(out / "video.avi", video(), width, height, fps, quality)
     gt_rows = np.array(sorted(gt, key=lambda r: (r[0], r[1])), float).reshape(-1, 11)
     write_text(out / "gt.csv", format_gt(gt_rows))
     write_text(out / "world.csv", format_world(sorted(world, key=lambda r: (r[0], r[1]))))

@@ -19,7 +19,7 @@ from vtrack.sim.camera import Camera
 from vtrack.sim.road import Ground, Strip
 
 TILE = 256                 # value-noise lattice size (wraps)
-SAMPLES = 1_000_000        # ray samples for the whole image (anti-aliasing)
+SAMPLES = 800_000          # ray samples for the whole image (anti-aliasing)
 
 
 class _Noise:
@@ -60,7 +60,7 @@ def paint_ground(camera: Camera, ground: Ground,
     h, w = round(camera.height * ss), round(camera.width * ss)
     v, u = np.mgrid[0:h, 0:w].astype(np.float32)
     rays = camera.rays((u + 0.5) * (camera.width / w) - 0.5,
-                       (v + 0.5) * (camera.height / h) - 0.5).reshape(-1, 3)
+                       (v + 0.5) * (camera.height / h) - 0.5).reshape(-1, 3).astype(np.float32)
     del u, v
     cx, cy, cz = camera.centre
     dz = rays[:, 2]
@@ -71,8 +71,9 @@ def paint_ground(camera: Camera, ground: Ground,
     x, y, dist = x[on_ground], y[on_ground], dist[on_ground]
     noise = _Noise(rng)
     img = np.empty((h * w, 3), np.float32)
-    near = _terrain(ground, noise, x, y)
-    _paint_roads(near, ground, noise, x, y)
+    local = [strip.local(x, y) for strip in ground.strips]
+    near = _terrain(ground, noise, x, y, local)
+    _paint_roads(near, ground, noise, x, y, local)
     haze = (1 - np.exp(-dist / (2.5 * ground.far_m)))[:, None].astype(np.float32)
     img[on_ground] = near * (1 - 0.45 * haze) + 0.45 * haze * np.array(ground.sky, np.float32)
     img[~on_ground] = _far_scenery(camera, ground, rng, rays[~on_ground])
@@ -83,14 +84,16 @@ def paint_ground(camera: Camera, ground: Ground,
     return np.round(img).astype(np.uint8), beyond
 
 
-def _terrain(ground: Ground, noise: _Noise, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Grass (rural) or grass behind pavements (urban), with the pavement and verges."""
+def _terrain(ground: Ground, noise: _Noise, x: np.ndarray, y: np.ndarray,
+             local: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Grass (rural) or grass behind pavements (urban), with the pavement and verges;
+    `local` holds the points' (along, across) coordinates on each strip."""
     base = np.array(ground.verge_colour, np.float32)
-    tex = 14 * noise(x, y, 4.0) + 9 * noise(x, y, 0.7) + 7 * noise(x + 50, y, 0.08)
-    img = base + tex[..., None] * np.array((0.55, 1.0, 0.7), np.float32)
+    tex = (16 * noise(x, y, 6.0) + 9 * noise(x, y, 0.9) + 7 * noise(x + 50, y, 0.1)
+           + 5 * noise(x, y + 70, 0.03))
+    img = base + tex[..., None] * np.array((0.6, 1.0, 0.85), np.float32)
     edge = np.full(x.shape, np.inf, np.float32)
-    for strip in ground.strips:
-        along, across = strip.local(x, y)
+    for strip, (along, across) in zip(ground.strips, local):
         out = np.maximum(np.maximum(across - strip.left, strip.right - across), 0)
         inside = (along >= strip.start) & (along <= strip.end)
         edge = np.minimum(edge, np.where(inside, out, np.inf))
@@ -109,25 +112,26 @@ def _terrain(ground: Ground, noise: _Noise, x: np.ndarray, y: np.ndarray) -> np.
 
 
 def _paint_roads(img: np.ndarray, ground: Ground, noise: _Noise, x: np.ndarray,
-                 y: np.ndarray) -> None:
+                 y: np.ndarray, local: list[tuple[np.ndarray, np.ndarray]]) -> None:
     """Asphalt, wear and markings of every strip, in place (markings stop where another
-    strip's asphalt begins: a junction box has none)."""
-    local = [strip.local(x, y) for strip in ground.strips]
+    strip's asphalt begins: a junction box has none). Only points on asphalt are computed."""
     road = [_inside(s, a, c) for s, (a, c) in zip(ground.strips, local)]
-    asphalt = np.array(ground.asphalt, np.float32)
+    on = np.nonzero(np.logical_or.reduce(road))[0]
+    x, y = x[on], y[on]
+    local = [(a[on], c[on]) for a, c in local]
+    road = [r[on] for r in road]
     tex = 8 * noise(x, y, 2.5) + 4 * noise(x, y, 0.4) + 6 * noise(x + 90, y, 0.04)
     shade = 1 + tex / 100
     for strip, (along, across), inside in zip(ground.strips, local, road):
         for lane in strip.lanes:
             for wheel in (-0.8, 0.8):
                 track = np.clip(1 - np.abs(across - lane - wheel) / 0.45, 0, 1)
-                shade = shade - np.where(inside, 0.07 * track, 0)
+                shade -= np.where(inside, 0.07 * track, 0)
     for cx, cy, length, width, heading, factor in ground.patches:
         c, s = math.cos(heading), math.sin(heading)
         a, b = (x - cx) * c + (y - cy) * s, -(x - cx) * s + (y - cy) * c
         shade = np.where((np.abs(a) < length / 2) & (np.abs(b) < width / 2), shade * factor, shade)
-    any_road = np.logical_or.reduce(road)
-    img[any_road] = (asphalt * shade[..., None])[any_road]
+    out = np.array(ground.asphalt, np.float32) * shade[:, None]
     wear = 0.88 + 0.1 * np.clip(noise(x + 200, y, 0.15), -1.2, 1.2)
     for i, (strip, (along, across)) in enumerate(zip(ground.strips, local)):
         others = np.logical_or.reduce([r for j, r in enumerate(road) if j != i] or [False])
@@ -149,7 +153,8 @@ def _paint_roads(img: np.ndarray, ground: Ground, noise: _Noise, x: np.ndarray,
             colour[hit] = (215, 218, 218)
             paint |= hit
         paint &= road[i] & ~(others & ~_bars_only(strip, along, across))
-        img[paint] = (colour * wear[..., None])[paint]
+        out[paint] = (colour * wear[:, None])[paint]
+    img[on] = out
 
 
 def _inside(strip: Strip, along: np.ndarray, across: np.ndarray) -> np.ndarray:

@@ -23,27 +23,41 @@ WORLD_HEADER = "frame,id,X_m,Y_m,speed_kmh,length_m,class\n"
 @dataclass(frozen=True)
 class Seen:
     """One vehicle in one frame: its index, silhouette area (pixels) and box (x0, y0, x1, y1;
-    x1, y1 exclusive) in the coordinates of the id buffer it was drawn into."""
+    x1, y1 exclusive) in the coordinates of the id buffer it was drawn into, and the centre
+    of its footprint on the road (m)."""
 
     vehicle: int
     area: float
     box: tuple[int, int, int, int]
+    centre: tuple[float, float] = (0.0, 0.0)
 
 
-def frame_rows(seen: list[Seen], ids: np.ndarray, origin: tuple[int, int],
-               vehicles: int) -> list[tuple[int, int, int, int, int, float]]:
-    """(vehicle, left, top, width, height, visible) for the vehicles at least partly inside
-    the image `ids` (the id buffer cropped at `origin` of the drawing buffer; a vehicle's id
-    there is its index + 1)."""
+@dataclass(frozen=True)
+class Row:
+    """A vehicle at least partly in view: index, box clipped to the image, visible fraction
+    and footprint centre on the road."""
+
+    vehicle: int
+    left: int
+    top: int
+    width: int
+    height: int
+    visible: float
+    centre: tuple[float, float]
+
+
+def frame_rows(seen: list[Seen], ids: np.ndarray, origin: tuple[int, int]) -> list[Row]:
+    """The rows of the vehicles at least partly inside the image `ids` (the id buffer
+    cropped at `origin` of the drawing buffer; a vehicle's id there is its index + 1)."""
     h, w = ids.shape
-    counts = np.bincount(ids.ravel(), minlength=vehicles + 1)
     rows = []
     for s in seen:
         x0, y0 = max(s.box[0] - origin[0], 0), max(s.box[1] - origin[1], 0)
         x1, y1 = min(s.box[2] - origin[0], w), min(s.box[3] - origin[1], h)
         if x1 > x0 and y1 > y0 and s.area > 0:
-            visible = min(1.0, counts[s.vehicle + 1] / s.area)
-            rows.append((s.vehicle, x0, y0, x1 - x0, y1 - y0, visible))
+            owned = cv2.countNonZero(cv2.compare(ids[y0:y1, x0:x1], s.vehicle + 1, cv2.CMP_EQ))
+            rows.append(Row(s.vehicle, x0, y0, x1 - x0, y1 - y0, min(1.0, owned / s.area),
+                            s.centre))
     return rows
 
 

@@ -93,7 +93,9 @@ def _ground(rng: np.random.Generator, strips: list[Strip], urban: bool,
             far: float) -> Ground:
     """Ground colours, patches and the far scenery around the given strips."""
     sky = tuple(np.array((235, 222, 205)) * rng.uniform(0.85, 1.0))
-    grass = tuple(np.array((60, 118, 82)) * rng.uniform(0.75, 1.15) + rng.uniform(-8, 8, 3))
+    dry = rng.uniform(0, 1) ** 2                          # lush green .. dry yellow-brown
+    grass = tuple((np.array((62, 118, 88)) * (1 - dry) + np.array((92, 138, 150)) * dry)
+                  * rng.uniform(0.8, 1.1) + rng.uniform(-6, 6, 3))
     patches = []
     for strip in strips:
         for _ in range(int(rng.integers(0, 4))):
@@ -333,13 +335,13 @@ def _side(rng: np.random.Generator, width: int, height: int, parked: bool) -> La
     far = rng.uniform(140, 260)
     cw = _carriageway(rng, -400, 400, per_side, parked)
     h = rng.uniform(4, 10)
-    back = rng.uniform(max(8.0, 2.4 * h), 45)
+    back = rng.uniform(max(6.0, 1.6 * h), 28)
     y_cam = cw.strip.right - back
     turn = math.radians(rng.uniform(-35, 35))
     yaw = math.pi / 2 + turn
     reach = (-y_cam) / math.cos(turn)
     pitch = math.atan2(h, reach) + math.radians(rng.uniform(-2, 4))
-    hfov = math.radians(rng.uniform(40, 70))
+    hfov = math.radians(rng.uniform(32, 62))
     camera = Camera.looking((0.0, y_cam, h), yaw, pitch, math.radians(rng.uniform(-2, 2)),
                             (width / 2) / math.tan(hfov / 2), width, height)
     lo, hi = _view_range(camera, far)
