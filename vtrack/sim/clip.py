@@ -24,7 +24,7 @@ import numpy as np
 from vtrack.errors import InputError
 from vtrack.fileio import write_text
 from vtrack.sim import props
-from vtrack.sim.camera import Camera
+from vtrack.sim.camera import NEAR_M, Camera
 from vtrack.sim.dynamics import Drivers, Motion, simulate
 from vtrack.sim.ground import paint_ground
 from vtrack.sim.groundtruth import (IdBook, Row, Seen, calibration_toml, choose_landmarks,
@@ -34,8 +34,8 @@ from vtrack.sim.avi import write_mjpeg_avi
 from vtrack.sim.output import check_settings, format_gt
 from vtrack.sim.paths import PathSet
 from vtrack.sim.population import default_count, populate
-from vtrack.sim.render import (Buffers, CrownSprite, Light, Placed, darken, draw_all,
-                               shadow_polygons, silhouette)
+from vtrack.sim.render import (SHIFT, Buffers, CrownSprite, Light, Placed, darken, draw_all,
+                               fixed, shadow_polygons, silhouette)
 from vtrack.sim.scenes import Layout, build_layout
 from vtrack.sim.shapes import place
 from vtrack.sim.vehicles import Vehicle
@@ -122,42 +122,44 @@ class ClipRenderer:
         on = scene.nuisances
         rng_tex, rng_shake, rng_exp, rng_noise, rng_crown = (
             np.random.default_rng(s) for s in np.random.SeedSequence([seed, 1]).spawn(5))
-        cam0 = scene.layout.camera
-        scale = cam0.width / 640
-        self.shake = (shake_offsets(rng_shake, scene.frames, scene.fps, scale) if "shake" in on
-                      else np.zeros((scene.frames, 2)))
+        size = scene.layout.camera.width, scene.layout.camera.height
+        self.shake = (shake_offsets(rng_shake, scene.frames, scene.fps, size[0] / 640)
+                      if "shake" in on else np.zeros((scene.frames, 2)))
         self.margin = int(math.ceil(np.abs(self.shake).max())) + 1 if "shake" in on else 0
-        self.camera = cam0.padded(self.margin)
-        background, beyond = paint_ground(self.camera, scene.layout.ground, rng_tex)
+        self.camera = scene.layout.camera.padded(self.margin)
+        self.sway, self.shadows = "vegetation" in on, "shadows" in on
         self.crowns = sorted((CrownSprite(c, self.camera, scene.light, rng_crown)
                               for c in scene.layout.crowns), key=lambda c: -c.depth)
-        self.sway = "vegetation" in on
-        self.shadows = "shadows" in on
-        scenery = ([Placed(m, m.points, m.face_normal, 0) for m in scene.layout.meshes])
-        self.dapple = _dapple(rng_crown, background.shape[:2])
+        self.dapple = _dapple(rng_crown, (self.camera.height, self.camera.width))
+        self.background, self.static_depth = self._paint_static(rng_tex)
+        self.static_mask = np.isfinite(self.static_depth)
+        self.no_ids = np.zeros(self.static_depth.shape, np.int32)
+        self.radius = np.array([math.hypot(v.length / 2, v.width / 2, v.height) + 0.5
+                                for v in scene.fleet])
+        self.lit, self.lamp_state = self.background, None
+        self.exposure = Exposure(rng_exp, scene.fps) if "exposure" in on else None
+        self.noise = (NoiseBank(rng_noise, (size[1], size[0], 3), rng_noise.uniform(1.5, 3.5))
+                      if "noise" in on else None)
+
+    def _paint_static(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """The empty scene (road plane, far scenery, the street furniture and its shadows) and
+        the depth of whatever static thing each pixel shows (inf: the road plane; the far
+        scenery counts as a wall at far_m)."""
+        scene, cam = self.scene, self.camera
+        background, beyond = paint_ground(cam, scene.layout.ground, rng)
+        scenery = [Placed(m, m.points, m.face_normal, 0) for m in scene.layout.meshes]
         if self.shadows:
             mask = np.zeros(background.shape[:2], np.uint8)
-            for poly in shadow_polygons(self.camera, scene.light, scenery):
-                cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, 4)
+            for poly in shadow_polygons(cam, scene.light, scenery):
+                cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, SHIFT)
             mask[beyond] = 0
             darken(background, mask, scene.light.shadow)
             if not self.sway:
                 self._crown_shadows(background, 0.0, beyond)
         buf = Buffers.start(background)
-        scenery.sort(key=lambda p: -float(self.camera.distance(p.world.mean(0))))
-        draw_all(buf, self.camera, scene.light, scenery)
-        self.static_depth = np.where(beyond, np.float32(scene.layout.ground.far_m), buf.depth)
-        self.static_mask = np.isfinite(self.static_depth)
-        self.no_ids = np.zeros(self.static_depth.shape, np.int32)
-        self.radius = np.array([math.hypot(v.length / 2, v.width / 2, v.height) + 0.5
-                                for v in scene.fleet])
-        self.background = buf.image
-        self.lit = self.background
-        self.lamp_state: tuple | None = None
-        self.exposure = Exposure(rng_exp, scene.fps) if "exposure" in on else None
-        sigma = rng_noise.uniform(1.5, 3.5) if "noise" in on else 0.0
-        self.noise = (NoiseBank(rng_noise, (cam0.height, cam0.width, 3), sigma)
-                      if "noise" in on else None)
+        scenery.sort(key=lambda p: -float(cam.distance(p.world.mean(0))))
+        draw_all(buf, cam, scene.light, scenery)
+        return buf.image, np.where(beyond, np.float32(scene.layout.ground.far_m), buf.depth)
 
     def _lamps(self, t: float) -> np.ndarray:
         """The background with the signal lamps lit for time t (redrawn when they change)."""
@@ -168,60 +170,54 @@ class ClipRenderer:
         if state != self.lamp_state:
             self.lamp_state, self.lit = state, self.background.copy()
             for lamp in self.scene.layout.lamps:
-                if state[lamp.group] != lamp.aspect:
-                    continue
                 cam = self.camera.to_camera(lamp.polygon)
                 facing = np.dot(lamp.normal, self.camera.centre - lamp.polygon.mean(0)) > 0
-                if facing and cam[:, 2].min() > 0.3:
-                    pts = np.round(self.camera.pixels(cam) * 16).astype(np.int32)
-                    cv2.fillConvexPoly(self.lit, pts, props.LAMP_COLOURS[lamp.aspect],
-                                       cv2.LINE_AA, 4)
+                if state[lamp.group] == lamp.aspect and facing and cam[:, 2].min() > NEAR_M:
+                    cv2.fillConvexPoly(self.lit, fixed(self.camera.pixels(cam)),
+                                       props.LAMP_COLOURS[lamp.aspect], cv2.LINE_AA, SHIFT)
         return self.lit
 
     def frames(self) -> Iterator[tuple[np.ndarray, list[Row]]]:
         """(image, rows) per frame: the rows of the vehicles at least partly in view."""
-        scene = self.scene
-        cam, light = self.camera, scene.light
-        w, h = scene.layout.camera.width, scene.layout.camera.height
-        for n in range(scene.frames):
-            t = n / scene.fps
+        for n in range(self.scene.frames):
+            t = n / self.scene.fps
             base = self._lamps(t)
             buf = Buffers.start(base)
-            active, origins, headings, centres = scene.poses(n)
-            keep = _in_view(cam, centres, self.radius[active])
-            active, centres = active[keep], centres[keep]
-            origins = [o for o, k in zip(origins, keep) if k]
-            headings = [h for h, k in zip(headings, keep) if k]
-            dist = cam.distance(np.column_stack([centres, np.ones(len(active))]))
-            placed = [Placed(scene.fleet[k].mesh, *place(scene.fleet[k].mesh, origins[i],
-                                                         headings[i]), int(k) + 1)
-                      for i, k in ((i, active[i]) for i in np.argsort(-dist, kind="stable"))]
+            placed, centres = self._placed(n)
             if self.shadows:
                 self._cast_shadows(buf, placed, t)
-            centre_of = dict(zip(active.tolist(), map(tuple, centres.tolist())))
             seen = []
-            for obj, hulls in zip(placed, draw_all(buf, cam, light, placed)):
-                if hulls and _near_view(hulls, cam):
+            for obj, hulls in zip(placed, draw_all(buf, self.camera, self.scene.light, placed)):
+                if hulls and _near_view(hulls, self.camera):
                     area, box = silhouette(hulls)
-                    seen.append(Seen(obj.ident - 1, area, box, centre_of[obj.ident - 1]))
+                    seen.append(Seen(obj.ident - 1, area, box, centres[obj.ident - 1]))
             front = cv2.compare(self.static_depth, buf.depth, cv2.CMP_LT)
-            cv2.copyTo(base, front, buf.image)
+            cv2.copyTo(base, front, buf.image)             # street furniture in front
             cv2.copyTo(self.no_ids, front, buf.ids)
             np.minimum(buf.depth, self.static_depth, out=buf.depth)
             for crown in self.crowns:
                 crown.draw(buf, t, self.sway)
-            ox, oy = int(round(self.margin + self.shake[n, 0])), int(round(self.margin
-                                                                            + self.shake[n, 1]))
-            image = self._camera_out(buf.image, n, w, h)
-            rows = frame_rows(sorted(seen, key=lambda s: s.vehicle), buf.ids[oy:oy + h, ox:ox + w],
-                              (ox, oy))
-            yield image, rows
+            yield self._camera_out(buf, n, sorted(seen, key=lambda s: s.vehicle))
+
+    def _placed(self, n: int) -> tuple[list[Placed], dict[int, tuple[float, float]]]:
+        """The vehicles that may show in frame n, placed, far to near (ident: index + 1),
+        and their footprint centres by index."""
+        scene = self.scene
+        active, origins, headings, centres = scene.poses(n)
+        keep = np.nonzero(_in_view(self.camera, centres, self.radius[active]))[0]
+        dist = self.camera.distance(np.column_stack([centres[keep], np.ones(len(keep))]))
+        placed = []
+        for i in keep[np.argsort(-dist, kind="stable")]:
+            mesh = scene.fleet[active[i]].mesh
+            placed.append(Placed(mesh, *place(mesh, origins[i], headings[i]),
+                                 int(active[i]) + 1))
+        return placed, {int(active[i]): tuple(centres[i]) for i in keep}
 
     def _cast_shadows(self, buf: Buffers, placed: list[Placed], t: float) -> None:
         """Darken the road under the shadows of the vehicles (and swaying crowns)."""
         mask = np.zeros(buf.ids.shape, np.uint8)
         for poly in shadow_polygons(self.camera, self.scene.light, placed):
-            cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, 4)
+            cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, SHIFT)
         mask[self.static_mask] = 0
         darken(buf.image, mask, self.scene.light.shadow)
         if self.sway:
@@ -234,30 +230,41 @@ class ClipRenderer:
         for crown in self.crowns:
             poly = crown.shadow(self.camera, self.scene.light, t, self.sway)
             if poly is not None:
-                cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, 4)
-        mask &= self.dapple
+                cv2.fillConvexPoly(mask, poly, 1, cv2.LINE_AA, SHIFT)
         mask[exclude] = 0
-        darken(image, mask, math.sqrt(self.scene.light.shadow))
+        x, y, w, h = cv2.boundingRect(mask)
+        if w and h:
+            leaf = cv2.GaussianBlur(mask[y:y + h, x:x + w] * self.dapple[y:y + h, x:x + w],
+                                    (0, 0), 1.0)
+            dark = 1 - (1 - math.sqrt(self.scene.light.shadow)) * leaf
+            region = image[y:y + h, x:x + w]
+            region[:] = (region * dark[..., None]).astype(np.uint8)
 
-    def _camera_out(self, canvas: np.ndarray, n: int, w: int, h: int) -> np.ndarray:
-        """Cut the frame out of the canvas at the shake offset, then exposure and noise."""
+    def _camera_out(self, buf: Buffers, n: int, seen: list[Seen]) -> tuple[np.ndarray, list[Row]]:
+        """Cut the frame out of the canvas at the shake offset (the image with sub-pixel
+        precision, the id buffer to the nearest pixel), apply exposure and noise, and read
+        the ground truth off the cut id buffer."""
+        w, h = self.scene.layout.camera.width, self.scene.layout.camera.height
         dx, dy = self.margin + self.shake[n]
-        if self.margin:
-            img = cv2.getRectSubPix(canvas, (w, h), (dx + (w - 1) / 2, dy + (h - 1) / 2))
-        else:
-            img = canvas
+        ox, oy = int(round(dx)), int(round(dy))
+        rows = frame_rows(seen, buf.ids[oy:oy + h, ox:ox + w], (ox, oy))
+        img = (cv2.getRectSubPix(buf.image, (w, h), (dx + (w - 1) / 2, dy + (h - 1) / 2))
+               if self.margin else buf.image)
         gain = 1.0 if self.exposure is None else self.exposure.gain(float(img[::8, ::8].mean()))
-        if self.noise is None:
-            return img if gain == 1.0 else cv2.convertScaleAbs(img, alpha=gain)
-        return cv2.addWeighted(img, gain, self.noise.sample(), 1.0, 0.0, dtype=cv2.CV_8U)
+        if self.noise is not None:
+            img = cv2.addWeighted(img, gain, self.noise.sample(), 1.0, 0.0, dtype=cv2.CV_8U)
+        elif gain != 1.0:
+            img = cv2.convertScaleAbs(img, alpha=gain)
+        return img, rows
 
 
 def _dapple(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
-    """A fixed pattern of sun flecks: 1 where leaves block the sun, 0 in the flecks."""
-    raw = rng.standard_normal((shape[0] // 2 + 2, shape[1] // 2 + 2)).astype(np.float32)
-    smooth = cv2.resize(cv2.GaussianBlur(raw, (0, 0), 0.8), shape[::-1],
-                        interpolation=cv2.INTER_LINEAR)
-    return (smooth < 0.3 * smooth.std()).astype(np.uint8)
+    """A fixed pattern of sun flecks: the share of sunlight the leaves block (float32, about
+    1 under the leaves, 0 in the flecks)."""
+    raw = rng.standard_normal((shape[0] // 3 + 2, shape[1] // 3 + 2)).astype(np.float32)
+    smooth = cv2.resize(cv2.GaussianBlur(raw, (0, 0), 0.9), shape[::-1],
+                        interpolation=cv2.INTER_CUBIC)
+    return np.clip(1.6 - 1.8 * smooth / smooth.std(), 0, 1)
 
 
 def _in_view(camera: Camera, centres: np.ndarray, radius: np.ndarray) -> np.ndarray:
