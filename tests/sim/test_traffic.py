@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
+from vtrack.sim.idm import B_MAX
 from vtrack.sim.traffic import (
-    B_MAX,
     KINDS,
     Renderer,
     format_gt,

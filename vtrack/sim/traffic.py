@@ -6,12 +6,7 @@ in the lower half, kerbs, sidewalks and grass. A footbridge crosses the road (wi
 and two trees overhang the outer lanes; both are drawn OVER the vehicles.
 
 Cars, vans and trucks enter from the image border on their lane's side at scheduled times and
-follow a car-following law (intelligent driver model, IDM):
-
-    a* = a_max [1 - (v/v_d)^4 - (s*/g)^2],   s* = s0 + v T + v dv / (2 sqrt(a_max b))
-
-(above the desired speed the free term is -b [1 - (v_d/v)^2]), clipped to [-b_max, a_max] and
-smoothed by a first-order lag (tau) so the acceleration is continuous. Each vehicle's desired
+follow the intelligent driver model of vtrack.sim.idm (in pixel units). Each vehicle's desired
 speed v_d dips for a few seconds at random times, so vehicles brake and speed up again.
 Vehicles in one lane never overlap: a vehicle enters only when the gap to its leader is at
 least s0 + T v, and IDM keeps that gap.
@@ -26,7 +21,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -37,6 +31,9 @@ import numpy as np
 
 from vtrack.errors import InputError
 from vtrack.fileio import write_text
+from vtrack.sim.idm import HEADWAY_S, S0_M, advance, desired_speed, idm_command
+from vtrack.sim.nuisance import NoiseBank
+from vtrack.sim.output import check_settings, format_gt, write_video
 
 # Road geometry, as fractions of the image height, and real-world scale.
 LANE_FRAC = 0.095          # lane width / image height
@@ -45,12 +42,6 @@ LANE_M = 3.5               # a lane is 3.5 m wide: this fixes pixels per metre
 SIDEWALK_M = 2.2
 KERB_M = 0.35
 
-# Car-following (IDM) parameters, metres and seconds.
-S0_M = 2.0                 # standstill gap
-HEADWAY_S = 1.3            # desired time gap T
-B_COMFORT = 2.0            # comfortable deceleration b
-B_MAX = 5.0                # deceleration limit b_max
-TAU_S = 0.4                # lag of the actual behind the commanded acceleration
 SUBSTEPS = 4               # integration steps per frame
 
 # Vehicle kinds: (probability, length range m, width range m, desired speed range m/s, a_max).
@@ -248,27 +239,6 @@ def _draw_motion(rng: np.random.Generator, fleet: tuple[Vehicle, ...], layout: L
     return _Motion(enter_at, v_des, a_max, dip_start, dip_hold, dip_factor)
 
 
-def _desired_speed(m: _Motion, t: float, ramp: float = 1.5) -> np.ndarray:
-    """v_d(t): the base desired speed times smooth (raised-cosine) dips."""
-    u = t - m.dip_start
-    up = np.clip(u / ramp, 0, 1)
-    down = np.clip((u - ramp - m.dip_hold) / ramp, 0, 1)
-    bump = 0.5 * (1 - np.cos(np.pi * up)) - 0.5 * (1 - np.cos(np.pi * down))
-    return m.v_desired * np.min(1 - (1 - m.dip_factor) * bump, axis=1)
-
-
-def _idm(v: np.ndarray, v_d: np.ndarray, gap: np.ndarray, dv: np.ndarray,
-         a_max: np.ndarray, ppm: float) -> np.ndarray:
-    """IDM command a* (module docstring), clipped to [-b_max, a_max]; gap = inf: free road."""
-    b = B_COMFORT * ppm
-    ratio = v / v_d
-    free = np.where(ratio <= 1, a_max * (1 - ratio ** 4),
-                    -b * (1 - 1 / np.maximum(ratio, 1) ** 2))
-    s_star = S0_M * ppm + np.maximum(0, v * HEADWAY_S + v * dv / (2 * np.sqrt(a_max * b)))
-    interaction = -a_max * (s_star / gap) ** 2
-    return np.clip(free + interaction, -B_MAX * ppm, a_max)
-
-
 def _leaders(fleet: tuple[Vehicle, ...]) -> np.ndarray:
     """Index of the vehicle scheduled just before each one in its lane (-1: none)."""
     prev = np.full(len(fleet), -1)
@@ -311,19 +281,16 @@ class _Road:
 
     def step(self, t: float, dt: float) -> None:
         """Admit due vehicles, then advance the others by dt under the lagged IDM command."""
-        v_d = _desired_speed(self.m, t)
+        m = self.m
+        v_d = desired_speed(m.v_desired, m.dip_start, m.dip_hold, m.dip_factor, t)
         p = self.prev
         leader_on = self.has_prev & (self.state[p] == self.DRIVING)
         gap = np.where(leader_on, self.s[p] - self.length[p] - self.s, np.inf)
         self._admit(t, v_d, leader_on, gap)
         on = self.state == self.DRIVING
         dv = np.where(leader_on, self.v - self.v[p], 0.0)
-        a_cmd = _idm(self.v, v_d, np.maximum(gap, 1e-6), dv, self.m.a_max, self.ppm)
-        a = np.where(on, self.a + (a_cmd - self.a) * min(1.0, dt / TAU_S), self.a)
-        v_new = np.where(on, np.maximum(self.v + a * dt, 0.0), self.v)
-        self.a = np.where(on, (v_new - self.v) / dt, self.a)
-        self.s = np.where(on, self.s + 0.5 * (self.v + v_new) * dt, self.s)
-        self.v = v_new
+        a_cmd = idm_command(self.v, v_d, np.maximum(gap, 1e-6), dv, self.m.a_max, self.ppm)
+        self.s, self.v, self.a = advance(self.s, self.v, self.a, a_cmd, dt, on)
         self.state[on & (self.s >= self.exit_s)] = self.GONE
 
     def _admit(self, t: float, v_d: np.ndarray, leader_on: np.ndarray, gap: np.ndarray) -> None:
@@ -372,12 +339,6 @@ def _visible_table(layout: Layout) -> np.ndarray:
     return sat
 
 
-def format_gt(rows: np.ndarray) -> str:
-    """gt.csv text: integers as integers, the visible fraction with 4 decimals."""
-    return "".join(f"{int(r[0])},{int(r[1])},{int(r[2])},{int(r[3])},{int(r[4])},{int(r[5])},"
-                   f"1,-1,-1,-1,{r[10]:.4f}\n" for r in rows)
-
-
 # ----------------------------------------------------------------------------- rendering
 
 class Renderer:
@@ -385,8 +346,6 @@ class Renderer:
 
     NOISE_SIGMA = 2.5      # per-pixel sensor noise (grey levels)
     FLICKER = 0.02         # amplitude of the global brightness flicker
-    NOISE_BANK = 4         # noise fields drawn once ...
-    NOISE_PAD = 16         # ... and shifted by up to this many pixels each frame
 
     def __init__(self, traj: Trajectories, seed: int) -> None:
         texture_seq, noise_seq = np.random.SeedSequence(seed).spawn(3)[1:]
@@ -399,7 +358,7 @@ class Renderer:
                         for veh in traj.vehicles]
         self._lefts = traj.lefts()
         self._noise_rng = np.random.default_rng(noise_seq)
-        self._noise_bank = self._make_noise_bank()
+        self._noise = NoiseBank(self._noise_rng, self.background.shape, self.NOISE_SIGMA)
         self._phase = rng.uniform(0, 2 * np.pi)
 
     def empty(self) -> np.ndarray:
@@ -422,24 +381,9 @@ class Renderer:
             gain += 0.004 * self._noise_rng.standard_normal()
             img = self.clean(n).astype(np.float32)
             img *= np.float32(gain)
-            img += self._noise()
+            img += self._noise.sample()
             np.clip(img, 0, 255, out=img)
             yield img.astype(np.uint8)
-
-    def _make_noise_bank(self) -> np.ndarray:
-        """A few padded fields of integer Gaussian noise; drawing fresh noise every frame
-        would dominate the render time."""
-        h, w, c = self.background.shape
-        shape = (self.NOISE_BANK, h + self.NOISE_PAD, w + self.NOISE_PAD, c)
-        noise = self._noise_rng.standard_normal(shape, dtype=np.float32) * self.NOISE_SIGMA
-        return np.clip(np.round(noise), -127, 127).astype(np.int8)
-
-    def _noise(self) -> np.ndarray:
-        """This frame's noise: a randomly chosen and shifted window of the noise bank."""
-        h, w = self.background.shape[:2]
-        i, dy, dx = self._noise_rng.integers([self.NOISE_BANK, self.NOISE_PAD + 1,
-                                              self.NOISE_PAD + 1])
-        return self._noise_bank[i, dy:dy + h, dx:dx + w]
 
     def _finish(self, img: np.ndarray) -> np.ndarray:
         x0, x1 = self.traj.layout.shadow
@@ -566,23 +510,6 @@ def _paint_occluders(lay: Layout, rng: np.random.Generator) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- output
 
-def check_settings(frames: int, vehicles: int, width: int, height: int, fps: float,
-                   seed: int, quality: int) -> None:
-    """Raise InputError for settings the scene cannot be drawn with."""
-    rules = [
-        (frames >= 1, f"--frames must be >= 1 (got {frames})"),
-        (vehicles >= 0, f"--vehicles must be >= 0 (got {vehicles})"),
-        (160 <= width <= 4096, f"--width must be 160..4096 (got {width})"),
-        (90 <= height <= 4096, f"--height must be 90..4096 (got {height})"),
-        (math.isfinite(fps) and 1 <= fps <= 240, f"--fps must be 1..240 (got {fps})"),
-        (seed >= 0, f"--seed must be >= 0 (got {seed})"),
-        (1 <= quality <= 100, f"--quality must be 1..100 (got {quality})"),
-    ]
-    for ok, message in rules:
-        if not ok:
-            raise InputError(message)
-
-
 def render_scene(out_dir: str | os.PathLike, frames: int = 300, vehicles: int = 12,
                  width: int = 640, height: int = 360, fps: float = 25.0, seed: int = 0,
                  quality: int = 90) -> SynthResult:
@@ -595,32 +522,7 @@ def render_scene(out_dir: str | os.PathLike, frames: int = 300, vehicles: int = 
     traj = simulate_traffic(frames, vehicles, width, height, fps, seed)
     rows = ground_truth(traj)
     out.mkdir(parents=True, exist_ok=True)
-    _write_video(out / "video.avi", Renderer(traj, seed).frames(), width, height, fps, quality)
+    write_video(out / "video.avi", Renderer(traj, seed).frames(), width, height, fps, quality)
     write_text(out / "gt.csv", format_gt(rows))
     return SynthResult(out / "video.avi", out / "gt.csv", frames, width, height,
                        len(np.unique(rows[:, 1])), len(rows), time.perf_counter() - started)
-
-
-def _write_video(path: Path, frames: Iterator[np.ndarray], width: int, height: int,
-                 fps: float, quality: int) -> None:
-    """Encode MJPG into a temporary sibling, then rename it over `path`."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)           # mkstemp makes 0600; give the usual mode
-    try:
-        writer = cv2.VideoWriter(tmp, cv2.CAP_OPENCV_MJPEG, cv2.VideoWriter_fourcc(*"MJPG"),
-                                 fps, (width, height))
-        if not writer.isOpened():
-            raise InputError(f"{path}: cannot open an MJPG video writer")
-        writer.set(cv2.VIDEOWRITER_PROP_QUALITY, quality)
-        try:
-            for frame in frames:
-                writer.write(frame)
-        finally:
-            writer.release()
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
