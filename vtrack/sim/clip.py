@@ -33,7 +33,7 @@ from vtrack.sim.nuisance import Exposure, NoiseBank, shake_offsets
 from vtrack.sim.avi import write_mjpeg_avi
 from vtrack.sim.output import check_settings, format_gt
 from vtrack.sim.paths import PathSet
-from vtrack.sim.population import default_count, populate
+from vtrack.sim.population import draw_flow, populate
 from vtrack.sim.render import (SHIFT, Buffers, CrownSprite, Light, Placed, darken, draw_all,
                                fixed, shadow_polygons, silhouette)
 from vtrack.sim.scenes import Layout, build_layout
@@ -105,8 +105,12 @@ def build_scene(name: str, frames: int, vehicles: int | None, width: int, height
     layout = build_layout(name, rng_layout, width, height, "parked" in nuisances)
     paths = PathSet(layout.paths)
     duration = frames / fps
-    count = default_count(rng_traffic, layout, duration) if vehicles is None else vehicles
-    drivers, fleet, t_start = populate(rng_traffic, layout, duration, count,
+    if vehicles is None:
+        flow = draw_flow(rng_traffic, layout)
+        count = round(flow * duration)
+    else:
+        count, flow = vehicles, vehicles / (0.9 * duration)
+    drivers, fleet, t_start = populate(rng_traffic, layout, duration, count, flow,
                                        "inview" in nuisances, "parked" in nuisances,
                                        "mix" in nuisances)
     motion = simulate(paths, drivers, layout.signals, frames, fps, t_start)
