@@ -30,13 +30,22 @@ CLASSES = {"motorcycle", "car", "van", "truck"}
 
 @pytest.fixture(scope="module")
 def clips(tmp_path_factory):
-    """Each preset rendered once, small, with every nuisance: preset -> folder."""
+    """Each preset rendered once, small, with every nuisance but shake: preset -> folder."""
     out = {}
     for preset in ("mast", "side", "junction"):
         folder = tmp_path_factory.mktemp(preset)
-        render_preset(folder, preset, frames=FRAMES, width=W, height=H, seed=3, nuisances=ALL)
+        render_preset(folder, preset, frames=FRAMES, width=W, height=H, seed=3,
+                      nuisances=ALL - {"shake"})
         out[preset] = folder
     return out
+
+
+@pytest.fixture(scope="module")
+def shaken(tmp_path_factory):
+    """A mast clip with every nuisance, shake included."""
+    folder = tmp_path_factory.mktemp("shaken")
+    render_preset(folder, "mast", frames=FRAMES, width=W, height=H, seed=3, nuisances=ALL)
+    return folder
 
 
 def _gt(folder):
@@ -105,7 +114,7 @@ def test_vehicles_are_in_view_in_frame_1_only_with_inview(clips):
 def test_mast_box_areas_span_four_times_between_far_and_near(seed):
     """The same vehicle's fully visible GT box grows at least 4x from the far to the near
     end of the visible road."""
-    sc = build_scene("mast", 250, None, W, H, 25.0, seed, frozenset({"inview", "mix"}))
+    sc = build_scene("mast", 100, None, W, H, 10.0, seed, frozenset({"inview", "mix"}))
     areas: dict[int, list[float]] = {}
     for _, rows in ClipRenderer(sc, seed).frames():
         for r in rows:
@@ -116,16 +125,14 @@ def test_mast_box_areas_span_four_times_between_far_and_near(seed):
 
 
 @pytest.mark.parametrize("preset", ["mast", "side", "junction"])
-def test_world_positions_project_into_their_gt_boxes(tmp_path, preset):
+def test_world_positions_project_into_their_gt_boxes(clips, preset):
     """Without shake, the road-plane centre of each fully visible vehicle, mapped through
     the homography of calibration.toml, lies inside its GT box."""
-    render_preset(tmp_path, preset, frames=FRAMES, width=W, height=H, seed=4,
-                  nuisances=ALL - {"shake"})
-    gt = _gt(tmp_path)
-    world, _ = _world(tmp_path)
-    _, _, _, hom = _homography(tmp_path)
+    gt = _gt(clips[preset])
+    world, _ = _world(clips[preset])
+    _, _, _, hom = _homography(clips[preset])
     full = gt[:, 10] == 1.0
-    assert full.sum() > 20
+    assert full.sum() >= 10
     px = cv2.perspectiveTransform(world[full, 2:4].reshape(-1, 1, 2), hom).reshape(-1, 2)
     left, top, w, h = gt[full, 2:6].T
     inside = ((px[:, 0] >= left - 1) & (px[:, 0] <= left + w + 1) & (px[:, 1] >= top - 1)
@@ -133,12 +140,12 @@ def test_world_positions_project_into_their_gt_boxes(tmp_path, preset):
     assert inside.all(), f"{(~inside).sum()} of {len(inside)} centres outside their boxes"
 
 
-def test_world_positions_stay_near_gt_boxes_under_shake(clips):
+def test_world_positions_stay_near_gt_boxes_under_shake(shaken):
     """With shake the boxes move with the image (GT is what the camera sees) while the
     calibration is the unshaken camera's: the centres stay within a few pixels."""
-    gt = _gt(clips["mast"])
-    world, _ = _world(clips["mast"])
-    _, _, _, hom = _homography(clips["mast"])
+    gt = _gt(shaken)
+    world, _ = _world(shaken)
+    _, _, _, hom = _homography(shaken)
     full = gt[:, 10] == 1.0
     px = cv2.perspectiveTransform(world[full, 2:4].reshape(-1, 1, 2), hom).reshape(-1, 2)
     left, top, w, h = gt[full, 2:6].T
@@ -183,7 +190,7 @@ def test_visible_fraction_drops_when_a_vehicle_passes_in_front():
 def test_side_scene_near_lane_hides_far_lane():
     """In a side clip some vehicle fully inside the image is mostly hidden by a nearer one
     whose box covers it."""
-    sc = build_scene("side", 150, None, W, H, 25.0, 1, frozenset({"inview", "mix"}))
+    sc = build_scene("side", 60, None, W, H, 10.0, 1, frozenset({"inview", "mix"}))
     cam = sc.layout.camera
     found = 0
     for n, (_, rows) in enumerate(ClipRenderer(sc, 1).frames()):
@@ -264,10 +271,10 @@ def test_lanes_never_overlap():
                 assert np.all(gaps > -0.2), f"{preset} frame {n} path {p}"
 
 
-def test_same_seed_same_bytes(clips, tmp_path):
+def test_same_seed_same_bytes(shaken, tmp_path):
     render_preset(tmp_path, "mast", frames=FRAMES, width=W, height=H, seed=3, nuisances=ALL)
-    for name in ("gt.csv", "world.csv", "calibration.toml"):
-        assert (tmp_path / name).read_bytes() == (clips["mast"] / name).read_bytes()
+    for name in ("gt.csv", "world.csv", "calibration.toml", "video.avi"):
+        assert (tmp_path / name).read_bytes() == (shaken / name).read_bytes()
     other = tmp_path / "other"
     render_preset(other, "mast", frames=FRAMES, width=W, height=H, seed=4, nuisances=ALL)
     assert (other / "gt.csv").read_bytes() != (tmp_path / "gt.csv").read_bytes()
