@@ -194,7 +194,7 @@ def test_side_scene_near_lane_hides_far_lane():
     cam = sc.layout.camera
     found = 0
     for n, (_, rows) in enumerate(ClipRenderer(sc, 1).frames()):
-        active, _, _, centres = sc.poses(n)
+        active, centres = sc.centres(n)
         dist = dict(zip(active.tolist(), cam.distance(np.column_stack(
             [centres, np.ones(len(active))])).tolist()))
         for r in rows:
