@@ -229,6 +229,20 @@ def test_junction_queue_stands_for_seconds_then_drives_off(tmp_path):
     assert max(waited) >= 2.0, "a vehicle stands >= 2 s in view and later drives at 8 km/h"
 
 
+def test_parked_vehicles_stand_then_pull_out():
+    """With `parked`, vehicles stand on the shoulder from frame 1 and most pull out into the
+    traffic during a 12 s clip."""
+    moved = parked = 0
+    for preset, seed in (("mast", 0), ("mast", 3), ("side", 1), ("side", 5)):
+        sc = build_scene(preset, 120, None, W, H, 10.0, seed, ALL)
+        for k in np.nonzero(np.isneginf(sc.drivers.enter_at))[0]:
+            v = sc.motion.v[k]
+            assert np.all(v[:10] == 0), "standing for the first second"
+            parked += 1
+            moved += bool(np.any(v > 3.0))
+    assert parked >= 4 and moved >= parked / 2
+
+
 def test_turning_paths_curve():
     layout = build_layout("junction", np.random.default_rng(2), W, H, False)
     assert any(any(k != 0 for k, _ in p.pieces) for p in layout.paths)
