@@ -30,13 +30,22 @@ CLASSES = {"motorcycle", "car", "van", "truck"}
 
 @pytest.fixture(scope="module")
 def clips(tmp_path_factory):
-    """Each preset rendered once, small, with every nuisance: preset -> folder."""
+    """Each preset rendered once, small, with every nuisance but shake: preset -> folder."""
     out = {}
     for preset in ("mast", "side", "junction"):
         folder = tmp_path_factory.mktemp(preset)
-        render_preset(folder, preset, frames=FRAMES, width=W, height=H, seed=3, nuisances=ALL)
+        render_preset(folder, preset, frames=FRAMES, width=W, height=H, seed=3,
+                      nuisances=ALL - {"shake"})
         out[preset] = folder
     return out
+
+
+@pytest.fixture(scope="module")
+def shaken(tmp_path_factory):
+    """A mast clip with every nuisance, shake included."""
+    folder = tmp_path_factory.mktemp("shaken")
+    render_preset(folder, "mast", frames=FRAMES, width=W, height=H, seed=3, nuisances=ALL)
+    return folder
 
 
 def _gt(folder):
@@ -80,7 +89,6 @@ def test_preset_writes_video_gt_world_and_calibration(clips, preset):
     assert np.all((left + w <= W) & (top + h <= H))
     assert np.all(gt[:, 6] == 1) and np.all(gt[:, 7:10] == -1)
     assert np.all((gt[:, 10] >= 0) & (gt[:, 10] <= 1))
-    assert gt[gt[:, 0] == 1].shape[0] >= 1, "vehicles are already in view in frame 1"
     world, classes = _world(folder)
     assert np.array_equal(world[:, :2], gt[:, :2]), "one world row per gt row"
     assert set(classes) <= CLASSES
@@ -92,11 +100,21 @@ def test_preset_writes_video_gt_world_and_calibration(clips, preset):
         assert area > 0.01 * W * H, "no three calibration points are (nearly) collinear"
 
 
+def test_vehicles_are_in_view_in_frame_1_only_with_inview(clips):
+    in_first = sum(int(np.sum(_gt(folder)[:, 0] == 1)) for folder in clips.values())
+    assert in_first >= 3
+    for preset in ("mast", "side", "junction"):
+        on_road = ~np.isnan(build_scene(preset, 2, None, W, H, 25.0, 3, ALL).motion.s[:, 0])
+        assert on_road.sum() >= 3
+        later = build_scene(preset, 2, None, W, H, 25.0, 3, ALL - {"inview", "parked"})
+        assert np.isnan(later.motion.s[:, 0]).all()
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_mast_box_areas_span_four_times_between_far_and_near(seed):
     """The same vehicle's fully visible GT box grows at least 4x from the far to the near
     end of the visible road."""
-    sc = build_scene("mast", 250, None, W, H, 25.0, seed, frozenset({"inview", "mix"}))
+    sc = build_scene("mast", 100, None, W, H, 10.0, seed, frozenset({"inview", "mix"}))
     areas: dict[int, list[float]] = {}
     for _, rows in ClipRenderer(sc, seed).frames():
         for r in rows:
@@ -107,16 +125,14 @@ def test_mast_box_areas_span_four_times_between_far_and_near(seed):
 
 
 @pytest.mark.parametrize("preset", ["mast", "side", "junction"])
-def test_world_positions_project_into_their_gt_boxes(tmp_path, preset):
+def test_world_positions_project_into_their_gt_boxes(clips, preset):
     """Without shake, the road-plane centre of each fully visible vehicle, mapped through
     the homography of calibration.toml, lies inside its GT box."""
-    render_preset(tmp_path, preset, frames=FRAMES, width=W, height=H, seed=4,
-                  nuisances=ALL - {"shake"})
-    gt = _gt(tmp_path)
-    world, _ = _world(tmp_path)
-    _, _, _, hom = _homography(tmp_path)
+    gt = _gt(clips[preset])
+    world, _ = _world(clips[preset])
+    _, _, _, hom = _homography(clips[preset])
     full = gt[:, 10] == 1.0
-    assert full.sum() > 20
+    assert full.sum() >= 10
     px = cv2.perspectiveTransform(world[full, 2:4].reshape(-1, 1, 2), hom).reshape(-1, 2)
     left, top, w, h = gt[full, 2:6].T
     inside = ((px[:, 0] >= left - 1) & (px[:, 0] <= left + w + 1) & (px[:, 1] >= top - 1)
@@ -124,12 +140,12 @@ def test_world_positions_project_into_their_gt_boxes(tmp_path, preset):
     assert inside.all(), f"{(~inside).sum()} of {len(inside)} centres outside their boxes"
 
 
-def test_world_positions_stay_near_gt_boxes_under_shake(clips):
+def test_world_positions_stay_near_gt_boxes_under_shake(shaken):
     """With shake the boxes move with the image (GT is what the camera sees) while the
     calibration is the unshaken camera's: the centres stay within a few pixels."""
-    gt = _gt(clips["mast"])
-    world, _ = _world(clips["mast"])
-    _, _, _, hom = _homography(clips["mast"])
+    gt = _gt(shaken)
+    world, _ = _world(shaken)
+    _, _, _, hom = _homography(shaken)
     full = gt[:, 10] == 1.0
     px = cv2.perspectiveTransform(world[full, 2:4].reshape(-1, 1, 2), hom).reshape(-1, 2)
     left, top, w, h = gt[full, 2:6].T
@@ -174,11 +190,11 @@ def test_visible_fraction_drops_when_a_vehicle_passes_in_front():
 def test_side_scene_near_lane_hides_far_lane():
     """In a side clip some vehicle fully inside the image is mostly hidden by a nearer one
     whose box covers it."""
-    sc = build_scene("side", 150, None, W, H, 25.0, 1, frozenset({"inview", "mix"}))
+    sc = build_scene("side", 60, None, W, H, 10.0, 1, frozenset({"inview", "mix"}))
     cam = sc.layout.camera
     found = 0
     for n, (_, rows) in enumerate(ClipRenderer(sc, 1).frames()):
-        active, _, _, centres = sc.poses(n)
+        active, centres = sc.centres(n)
         dist = dict(zip(active.tolist(), cam.distance(np.column_stack(
             [centres, np.ones(len(active))])).tolist()))
         for r in rows:
@@ -213,6 +229,20 @@ def test_junction_queue_stands_for_seconds_then_drives_off(tmp_path):
     assert max(waited) >= 2.0, "a vehicle stands >= 2 s in view and later drives at 8 km/h"
 
 
+def test_parked_vehicles_stand_then_pull_out():
+    """With `parked`, vehicles stand on the shoulder from frame 1 and most pull out into the
+    traffic during a 12 s clip."""
+    moved = parked = 0
+    for preset, seed in (("mast", 0), ("mast", 3), ("side", 1), ("side", 5)):
+        sc = build_scene(preset, 120, None, W, H, 10.0, seed, ALL)
+        for k in np.nonzero(np.isneginf(sc.drivers.enter_at))[0]:
+            v = sc.motion.v[k]
+            assert np.all(v[:10] == 0), "standing for the first second"
+            parked += 1
+            moved += bool(np.any(v > 3.0))
+    assert parked >= 4 and moved >= parked / 2
+
+
 def test_turning_paths_curve():
     layout = build_layout("junction", np.random.default_rng(2), W, H, False)
     assert any(any(k != 0 for k, _ in p.pieces) for p in layout.paths)
@@ -224,7 +254,7 @@ def test_vehicle_mix_has_every_class_with_its_sizes():
         for seed in range(3):
             rng = np.random.default_rng(seed)
             layout = build_layout(preset, rng, W, H, True)
-            kinds += [v.kind for v in populate(rng, layout, 12.0, 20, True, True, True)[1]]
+            kinds += [v.kind for v in populate(rng, layout, 12.0, 20, 1.8, True, True, True)[1]]
     assert set(kinds) == CLASSES
     rng = np.random.default_rng(1)
     for kind in CLASSES:
@@ -237,7 +267,7 @@ def test_vehicle_mix_has_every_class_with_its_sizes():
     assert len(truck.units) == 2 and truck.length > 15
     rng = np.random.default_rng(0)
     layout = build_layout("side", rng, W, H, True)
-    assert {v.kind for v in populate(rng, layout, 12.0, 20, True, True, False)[1]} == {"car"}
+    assert {v.kind for v in populate(rng, layout, 12.0, 20, 1.8, True, True, False)[1]} == {"car"}
 
 
 def test_lanes_never_overlap():
@@ -255,10 +285,10 @@ def test_lanes_never_overlap():
                 assert np.all(gaps > -0.2), f"{preset} frame {n} path {p}"
 
 
-def test_same_seed_same_bytes(clips, tmp_path):
+def test_same_seed_same_bytes(shaken, tmp_path):
     render_preset(tmp_path, "mast", frames=FRAMES, width=W, height=H, seed=3, nuisances=ALL)
-    for name in ("gt.csv", "world.csv", "calibration.toml"):
-        assert (tmp_path / name).read_bytes() == (clips["mast"] / name).read_bytes()
+    for name in ("gt.csv", "world.csv", "calibration.toml", "video.avi"):
+        assert (tmp_path / name).read_bytes() == (shaken / name).read_bytes()
     other = tmp_path / "other"
     render_preset(other, "mast", frames=FRAMES, width=W, height=H, seed=4, nuisances=ALL)
     assert (other / "gt.csv").read_bytes() != (tmp_path / "gt.csv").read_bytes()
@@ -266,12 +296,14 @@ def test_same_seed_same_bytes(clips, tmp_path):
 
 def test_pixels_outside_gt_boxes_are_background():
     """Without shadows, sway and image nuisances, every pixel that differs from the empty
-    scene lies in (or within 2 px of) some vehicle's GT box."""
+    scene lies in (or within 2 px of) some vehicle's GT box. The outermost pixel ring is
+    left out: an anti-aliased edge of a vehicle just outside the image may tint it."""
     sc = build_scene("mast", 40, None, W, H, 25.0, 6, frozenset({"inview", "mix"}))
     nobody = replace(sc, motion=Motion(*np.full((3,) + sc.motion.s.shape, np.nan)))
     empty = (image for image, _ in ClipRenderer(nobody, 6).frames())
     for n, (image, rows) in enumerate(ClipRenderer(sc, 6).frames()):
         changed = np.abs(image.astype(int) - next(empty).astype(int)).max(axis=2) > 0
+        changed[[0, -1], :] = changed[:, [0, -1]] = False
         boxes = np.zeros_like(changed)
         for r in rows:
             boxes[max(r.top - 2, 0):r.top + r.height + 2,

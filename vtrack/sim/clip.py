@@ -16,6 +16,7 @@ import os
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import cv2
@@ -33,7 +34,7 @@ from vtrack.sim.nuisance import Exposure, NoiseBank, shake_offsets
 from vtrack.sim.avi import write_mjpeg_avi
 from vtrack.sim.output import check_settings, format_gt
 from vtrack.sim.paths import PathSet
-from vtrack.sim.population import default_count, populate
+from vtrack.sim.population import draw_flow, populate
 from vtrack.sim.render import (SHIFT, Buffers, CrownSprite, Light, Placed, darken, draw_all,
                                fixed, shadow_polygons, silhouette)
 from vtrack.sim.scenes import Layout, build_layout
@@ -60,32 +61,41 @@ class Scene:
         """Number of video frames."""
         return self.motion.s.shape[1]
 
-    def poses(self, n: int) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray],
-                                     np.ndarray]:
-        """The vehicles on the road in frame n, their units' road-plane origins (U, 2) and
-        headings (U,), and their footprint centres (K, 2). A unit spans the arc lengths
-        [s - rear, s - front] and points from its rear to its front; the centre is halfway
-        between the vehicle's front and rear."""
+    @cached_property
+    def _units(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """All vehicles' units flattened: first unit index of each vehicle (K + 1,), and each
+        unit's (front, rear) offsets (U, 2) and vehicle (U,)."""
+        counts = [len(v.units) for v in self.fleet]
+        first = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+        offsets = np.concatenate([v.units for v in self.fleet]).reshape(-1, 2)
+        return first, offsets, np.repeat(np.arange(len(self.fleet)), counts)
+
+    def centres(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The vehicles on the road in frame n and their footprint centres (K, 2), halfway
+        between their fronts and rears."""
         active = np.nonzero(~np.isnan(self.motion.s[:, n]))[0]
-        ends, owner = [], []
-        for k in active:
-            veh, s = self.fleet[k], self.motion.s[k, n]
-            ends.append(np.append(s - veh.units.ravel(), [s, s - veh.length]))
-            owner.append(np.full(len(ends[-1]), self.drivers.path[k]))
-        if not len(active):
-            return active, [], [], np.zeros((0, 2))
-        pts, _ = self.paths.pose(np.concatenate(owner), np.concatenate(ends))
-        origins, headings, centres = [], [], []
-        i = 0
-        for k in active:
-            u = len(self.fleet[k].units)
-            front, rear = pts[i:i + 2 * u:2], pts[i + 1:i + 2 * u:2]
-            d = front - rear
-            origins.append(rear)
-            headings.append(np.arctan2(d[:, 1], d[:, 0]))
-            centres.append(pts[i + 2 * u:i + 2 * u + 2].mean(0))
-            i += 2 * u + 2
-        return active, origins, headings, np.array(centres)
+        s = self.motion.s[active, n]
+        length = np.array([self.fleet[k].length for k in active])
+        pts, _ = self.paths.pose(np.tile(self.drivers.path[active], 2),
+                                 np.concatenate([s, s - length]))
+        return active, 0.5 * (pts[:len(active)] + pts[len(active):])
+
+    def units(self, vehicles: np.ndarray, n: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Road-plane origin (U, 2) and heading (U,) of each given vehicle's units in frame
+        n: a unit spans the arc lengths [s - rear, s - front] and points from its rear to
+        its front."""
+        first, offsets, owner = self._units
+        idx = np.concatenate([np.arange(first[k], first[k + 1]) for k in vehicles] or [[]])
+        idx = idx.astype(int)
+        s = self.motion.s[owner[idx], n]
+        path = self.drivers.path[owner[idx]]
+        pts, _ = self.paths.pose(np.tile(path, 2), np.concatenate([s - offsets[idx, 0],
+                                                                   s - offsets[idx, 1]]))
+        front, rear = pts[:len(idx)], pts[len(idx):]
+        d = front - rear
+        heading = np.arctan2(d[:, 1], d[:, 0])
+        cuts = np.cumsum([first[k + 1] - first[k] for k in vehicles])[:-1]
+        return list(zip(np.split(rear, cuts), np.split(heading, cuts)))
 
 
 def draw_light(rng: np.random.Generator) -> Light:
@@ -105,8 +115,12 @@ def build_scene(name: str, frames: int, vehicles: int | None, width: int, height
     layout = build_layout(name, rng_layout, width, height, "parked" in nuisances)
     paths = PathSet(layout.paths)
     duration = frames / fps
-    count = default_count(rng_traffic, layout, duration) if vehicles is None else vehicles
-    drivers, fleet, t_start = populate(rng_traffic, layout, duration, count,
+    if vehicles is None:
+        flow = draw_flow(rng_traffic, layout)
+        count = round(flow * duration)
+    else:
+        count, flow = vehicles, vehicles / (0.9 * duration)
+    drivers, fleet, t_start = populate(rng_traffic, layout, duration, count, flow,
                                        "inview" in nuisances, "parked" in nuisances,
                                        "mix" in nuisances)
     motion = simulate(paths, drivers, layout.signals, frames, fps, t_start)
@@ -203,14 +217,14 @@ class ClipRenderer:
         """The vehicles that may show in frame n, placed, far to near (ident: index + 1),
         and their footprint centres by index."""
         scene = self.scene
-        active, origins, headings, centres = scene.poses(n)
+        active, centres = scene.centres(n)
         keep = np.nonzero(_in_view(self.camera, centres, self.radius[active]))[0]
         dist = self.camera.distance(np.column_stack([centres[keep], np.ones(len(keep))]))
+        keep = keep[np.argsort(-dist, kind="stable")]
         placed = []
-        for i in keep[np.argsort(-dist, kind="stable")]:
-            mesh = scene.fleet[active[i]].mesh
-            placed.append(Placed(mesh, *place(mesh, origins[i], headings[i]),
-                                 int(active[i]) + 1))
+        for k, (origin, heading) in zip(active[keep], scene.units(active[keep], n)):
+            mesh = scene.fleet[k].mesh
+            placed.append(Placed(mesh, *place(mesh, origin, heading), int(k) + 1))
         return placed, {int(active[i]): tuple(centres[i]) for i in keep}
 
     def _cast_shadows(self, buf: Buffers, placed: list[Placed], t: float) -> None:

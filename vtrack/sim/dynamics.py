@@ -27,6 +27,7 @@ from vtrack.sim.paths import PathSet
 CORRIDOR_M = 1.4           # half-width of the corridor in which a vehicle sees its leader
 A_LAT = 2.2                # comfortable lateral acceleration in curves (m/s^2)
 STOP_BEFORE_M = 1.0        # vehicles stop this far before a stop line
+MERGE_S = 2.5              # a parked vehicle pulls out when traffic is this far (s) away
 MAX_DT = 0.05              # longest integration step while frames are recorded (s)
 WARMUP_DT = 0.1            # integration step before the first frame (s)
 
@@ -191,24 +192,27 @@ class _Road:
             blocked &= s < d.stop_s[rel] + 0.5
         held = self.held[rel]
         if held.any():
-            busy = self._lane_busy(rel, obst, s_front, lat_front)
+            busy = self._lane_busy(t, rel, obst, s_front, lat_front)
             held &= (t < d.release_at[rel]) | busy
             self.held[rel] = held
         obstacle = np.where(held, d.s_start[rel] + S0_M - s, np.where(blocked, to_line, np.inf))
         closer = obstacle < gap
         return np.where(closer, obstacle, gap), np.where(closer, 0.0, v_lead)
 
-    def _lane_busy(self, rel: np.ndarray, obst: np.ndarray, s_front: np.ndarray,
+    def _lane_busy(self, t: float, rel: np.ndarray, obst: np.ndarray, s_front: np.ndarray,
                    lat_front: np.ndarray) -> np.ndarray:
         """For each held vehicle: is traffic in its target lane near the merge point (a
-        front from 4 s plus 25 m before it to a car length and 8 m after it)?"""
+        front from w (MERGE_S seconds + 12 m) before it to a car length and 8 m after it)?
+        The longer it has waited past its release time, the smaller the gap it accepts:
+        w = max(0.35, 1 - wait / 8 s), as drivers in dense traffic squeeze in."""
         d = self.d
         busy = np.zeros(len(rel), dtype=bool)
         for r in np.nonzero(self.held[rel] & (d.merge_path[rel] >= 0))[0]:
             i = rel[r]
             p, m = d.merge_path[i], d.merge_s[i]
+            w = max(0.35, 1 - max(t - d.release_at[i], 0.0) / 8.0)
             near = (np.abs(lat_front[p]) < CORRIDOR_M) & (obst != i)
-            near &= ((s_front[p] > m - 4.0 * self.v[obst] - 25.0)
+            near &= ((s_front[p] > m - w * (MERGE_S * self.v[obst] + 12.0))
                      & (s_front[p] < m + d.length[i] + 8.0 + d.length[obst]))
             busy[r] = near.any()
         return busy

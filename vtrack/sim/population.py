@@ -2,8 +2,8 @@
 
 The clip's vehicles arrive at uniformly drawn times over its first 90 %, spread over the
 scene's routes by their weights times a random factor (so lanes carry different flows).
-With `inview`, the same flow (at most CAPACITY per entry) runs for WARMUP_S before frame 1,
-so that the road is already
+With `inview`, the flow (at most CAPACITY per entry) runs for WARMUP_S before frame 1, so
+that the road is already
 busy (and queues stand at red lights) when the video starts; with `parked`, vehicles stand
 on the shoulder from the start and pull out during the clip.
 """
@@ -22,16 +22,18 @@ WARMUP_S = 35.0
 CAPACITY = 0.45            # most vehicles per second one entry lane feeds before frame 1
 
 
-def default_count(rng: np.random.Generator, layout: Layout, duration: float) -> int:
-    """Vehicles arriving during the clip when --vehicles is not given: a flow of 0.25-0.65
-    vehicles per second times sqrt(number of entries)."""
+def draw_flow(rng: np.random.Generator, layout: Layout) -> float:
+    """Vehicles per second entering the scene when --vehicles is not given: 0.25-0.65 times
+    the square root of the number of entries."""
     entries = len({r.entry for r in layout.routes})
-    return max(2, round(duration * rng.uniform(0.25, 0.65) * math.sqrt(entries)))
+    return rng.uniform(0.25, 0.65) * math.sqrt(entries)
 
 
 def populate(rng: np.random.Generator, layout: Layout, duration: float, count: int,
-             inview: bool, parked: bool, mix: bool) -> tuple[Drivers, tuple[Vehicle, ...], float]:
-    """The drivers (in schedule order), their vehicles and the time the simulation starts."""
+             flow: float, inview: bool, parked: bool,
+             mix: bool) -> tuple[Drivers, tuple[Vehicle, ...], float]:
+    """The drivers (in schedule order), their vehicles and the time the simulation starts:
+    `count` vehicles arrive during the clip; before it (inview) `flow` vehicles per second."""
     routes = layout.routes
     share = np.array([r.weight for r in routes]) * rng.uniform(0.4, 1.6, len(routes))
     share /= share.sum()
@@ -39,7 +41,7 @@ def populate(rng: np.random.Generator, layout: Layout, duration: float, count: i
     times = list(rng.uniform(0, span, count))
     if inview:
         entries = len({r.entry for r in routes})
-        rate = min(count / span, CAPACITY * entries)
+        rate = min(flow, CAPACITY * entries)
         times += list(rng.uniform(-WARMUP_S, 0, rng.poisson(rate * WARMUP_S)))
     times = np.sort(np.array(times))
     which = rng.choice(len(routes), size=len(times), p=share)

@@ -86,6 +86,12 @@ def _stack(objects: list[Placed], field: str, offsets: list[int]) -> np.ndarray:
     return np.concatenate([getattr(o.mesh, field) + off for o, off in zip(objects, offsets)])
 
 
+def _offsets(objects: list[Placed], field: str) -> list[int]:
+    """Where each object's entries of a mesh array start once all are concatenated."""
+    counts = [len(getattr(o.mesh, field)) for o in objects]
+    return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int).tolist()
+
+
 def draw_all(buf: Buffers, camera: Camera, light: Light,
              objects: list[Placed]) -> list[list[np.ndarray]]:
     """Paint placed meshes in the given order (callers sort them far to near), each one's
@@ -95,8 +101,8 @@ def draw_all(buf: Buffers, camera: Camera, light: Light,
     computed for all objects at once; only the fills loop."""
     if not objects:
         return []
-    sizes = [len(o.world) for o in objects]
-    p_off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).tolist()
+    p_off, f_off = _offsets(objects, "points"), _offsets(objects, "faces")
+    d_off, b_off = _offsets(objects, "decals"), _offsets(objects, "blocks")
     world = np.concatenate([o.world for o in objects])
     cam = camera.to_camera(world)
     front = cam[:, 2] >= NEAR_M
@@ -111,17 +117,14 @@ def draw_all(buf: Buffers, camera: Camera, light: Light,
     lum = light.shade(normals)
     colour = np.clip(np.concatenate([o.mesh.face_colour for o in objects]) * lum[:, None],
                      0, 255).tolist()
-    f_off = np.concatenate([[0], np.cumsum([len(o.mesh.faces) for o in objects])[:-1]]).tolist()
     decals = _stack(objects, "decals", p_off)
     dec_face = _stack(objects, "decal_face", f_off)
     glow = np.concatenate([o.mesh.decal_glow for o in objects])
     dec_colour = np.clip(np.concatenate([o.mesh.decal_colour for o in objects])
                          * np.where(glow, 1.0, lum[dec_face])[:, None], 0, 255).tolist()
-    d_off = np.concatenate([[0], np.cumsum([len(o.mesh.decals) for o in objects])[:-1]]).tolist()
     blocks = _stack(objects, "blocks", p_off)
     dist = camera.distance(world[blocks].mean(1))
     whole_block = front[blocks].all(1)
-    b_off = np.concatenate([[0], np.cumsum([len(o.mesh.blocks) for o in objects])[:-1]]).tolist()
     visible, whole_face, detail = visible.tolist(), whole_face.tolist(), detail.tolist()
     out = []
     for o, po, fo, do, bo in zip(objects, p_off, f_off, d_off, b_off):
@@ -164,7 +167,7 @@ def draw_all(buf: Buffers, camera: Camera, light: Light,
 
 def silhouette(hulls: list[np.ndarray]) -> tuple[float, tuple[int, int, int, int]]:
     """Pixel area and bounding box (x0, y0, x1, y1), x1/y1 exclusive, of the union of fixed
-    point polygons, rasterised exactly as draw_mesh fills the id buffer (at reduced
+    point polygons, rasterised exactly as draw_all fills the id buffer (at reduced
     resolution, and the box from the vertices, when it is huge)."""
     allpts = np.concatenate([h.reshape(-1, 2) for h in hulls]).astype(np.int64)
     x0, y0 = (allpts.min(0) >> SHIFT) - 1

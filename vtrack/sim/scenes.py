@@ -207,9 +207,11 @@ def _road_traffic(cw: _Carriageway, x0: float, x1: float, spots_x: list[float],
     return paths, routes, spots
 
 
-def _verge_plants(rng: np.random.Generator, x0: float, x1: float, sides: list[tuple[float, int]],
-                  count: int) -> tuple[list[Crown], list[Mesh]]:
-    """Trees (crown and trunk) and bushes beside the road: sides are (edge y, outward sign)."""
+def _verge_plants(rng: np.random.Generator, camera: Camera, x0: float, x1: float,
+                  sides: list[tuple[float, int]], count: int) -> tuple[list[Crown], list[Mesh]]:
+    """Trees (crown and trunk) and bushes beside the road: sides are (edge y, outward sign).
+    None stands so close to the camera that its crown would fill more than a fifth of the
+    image width (a plant right at the lens)."""
     crowns, meshes = [], []
     for _ in range(count):
         edge, out = sides[int(rng.integers(len(sides)))]
@@ -217,13 +219,14 @@ def _verge_plants(rng: np.random.Generator, x0: float, x1: float, sides: list[tu
         y = edge + out * rng.uniform(2.5, 14.0)
         colour = tuple(np.array((40, 95, 55)) * rng.uniform(0.7, 1.25))
         sway = rng.uniform(0.05, 0.25)
-        if rng.random() < 0.55:
-            r, z = rng.uniform(1.8, 3.8), rng.uniform(4.0, 7.5)
-            crowns.append(Crown((x, y, z), r, colour, sway))
+        tree = rng.random() < 0.55
+        r = rng.uniform(1.8, 3.8) if tree else rng.uniform(0.7, 1.5)
+        z = rng.uniform(4.0, 7.5) if tree else 0.8 * r
+        if 2 * r * camera.focal > 0.2 * camera.width * camera.distance(np.array([x, y, z])):
+            continue
+        crowns.append(Crown((x, y, z), r, colour, sway if tree else 0.5 * sway))
+        if tree:
             meshes.append(props.trunk(x, y, z - 0.6 * r))
-        else:
-            r = rng.uniform(0.7, 1.5)
-            crowns.append(Crown((x, y, 0.8 * r), r, colour, 0.5 * sway))
     return crowns, meshes
 
 
@@ -291,7 +294,7 @@ def _roadside(rng: np.random.Generator, layout: Layout, cw: _Carriageway, lo: np
     gap = rng.uniform(30, 55)
     for x in np.arange(x0 + rng.uniform(0, gap), x1, gap):
         layout.meshes.append(props.lamp_post(x, y_post, -side * rng.uniform(1.5, 3.0)))
-    crowns, trunks = _verge_plants(rng, x0, x1, [(right, -1), (left, 1)],
+    crowns, trunks = _verge_plants(rng, layout.camera, x0, x1, [(right, -1), (left, 1)],
                                    int(rng.integers(6, 16)))
     layout.crowns += crowns
     layout.meshes += trunks
