@@ -325,7 +325,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-large", action="store_true", help="skip the 1280x720 clip")
     ap.add_argument("--no-real", action="store_true", help="skip the real clips")
     ap.add_argument("--no-peers", action="store_true", help="vtrack only")
-    ap.add_argument("--only", default="", help="run only clips whose name contains this")
+    ap.add_argument("--only", default="",
+                    help="run only clips whose name contains one of these (comma-separated)")
     ap.add_argument("--quick", action="store_true",
                     help="one 150-frame clip per preset and two real clips")
     ap.add_argument("--config", help="a TOML config instead of the defaults")
@@ -344,7 +345,8 @@ def main(argv: list[str] | None = None) -> int:
     else:
         clips = list(synthetic_clips(scenes, seeds, args.frames, not args.no_large))
         clips += [] if args.no_real else real_clips()
-    clips = [c for c in clips if args.only in c.name]
+    keys = [k for k in args.only.split(",") if k]
+    clips = [c for c in clips if not keys or any(k in c.name for k in keys)]
     trackers = ["vtrack"] + ([] if args.no_peers else list(PEERS))
     work, cache = Path(args.work), Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -76,15 +77,17 @@ class TrackJob:
         try:
             detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height,
                                       self.info.fps)
-            tracker = Tracker(self.cfg.tracker, self.info.width, self.info.height)
+            detector.initialise(self._background_samples())
+            tracker = Tracker(self.cfg.tracker, self.info.width, self.info.height,
+                              self.info.fps)
             writer = self._open_writer()
             logger = self._open_rerun()
             bar = self._progress()
             t0 = time.perf_counter()
             for frame in reader:
-                dets = detector.detect(frame.image)
-                ft = tracker.step(frame.index, frame.time, dets.centers, dets.boxes,
-                                  dets.motion)
+                dets = detector.detect(frame.image,
+                                       lambda motion: tracker.predict(frame.time, motion))
+                ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes)
                 self.frames = frame.index
                 self.acc.times.append(frame.time)
                 self._record(ft)
@@ -110,6 +113,26 @@ class TrackJob:
                 logger.close()
             summary = self._write(complete)
         return summary
+
+    def _background_samples(self) -> Iterator[np.ndarray]:
+        """Frames sampled evenly over the first `init_background_seconds` of the video (a
+        second, supervised read of its start), for the detector's background."""
+        from vtrack.vision.video import VideoReader
+
+        cfg = self.cfg.detector
+        n = round(cfg.init_background_seconds * self.info.fps)
+        if self.info.frame_count:
+            n = min(n, self.info.frame_count)
+        if self.opts.max_frames:
+            n = min(n, self.opts.max_frames)
+        if n < cfg.init_background_samples:
+            return
+        stride = n / cfg.init_background_samples
+        wanted = {1 + int(k * stride) for k in range(cfg.init_background_samples)}
+        with VideoReader(self.video, max_frames=n) as reader:
+            for frame in reader:
+                if frame.index in wanted:
+                    yield frame.image
 
     def _prepare_out_dir(self) -> None:
         self.out.mkdir(parents=True, exist_ok=True)

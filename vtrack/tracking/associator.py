@@ -60,9 +60,13 @@ class Associator:
             tracks.x[:, :2], tracks.P[:, :2, :2], centers, self.gate, cfg.max_gate * scale,
             lambda trk, det: nested_centre(tracks.x[trk, :2], size[trk], boxes[det],
                                            sigma[trk, None]))
+        # A vehicle's detection overlaps its predicted box (the gate alone, in box scales,
+        # would let a coasting track with a large box jump to a neighbour).
+        touch = _intersection(track_boxes[ti], boxes[di]) > 0
+        ti, di, cost = ti[touch], di[touch], cost[touch]
         mt, md = assign(ti, di, cost, len(tracks), len(centers))
         mt, md, consumed, duplicates = _resolve_shared(tracks, track_boxes, mt, md, boxes)
-        mt, md = _reacquire(tracks, track_boxes, mt, md, consumed, duplicates, centers)
+        mt, md = _reacquire(tracks, track_boxes, mt, md, consumed, duplicates, centers, boxes)
         return Association(centers, boxes, mt, md, consumed, split, duplicates)
 
     def _join_fragments(self, tracks: TrackTable, track_boxes: np.ndarray, t: float,
@@ -163,10 +167,10 @@ def _resolve_shared(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray,
 
 
 def _reacquire(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray, md: np.ndarray,
-               consumed: np.ndarray, duplicates: np.ndarray, centers: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray]:
+               consumed: np.ndarray, duplicates: np.ndarray, centers: np.ndarray,
+               boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A track left without a detection takes a left-over detection whose centre lies
-    inside its predicted box (nearest first).
+    inside its predicted box (nearest first) and whose area is at most twice the box's.
 
     A track that coasted on a prediction spoilt by partial detections (an occluder) can
     drift out of its own gate while its vehicle is plainly inside its box; without this stage
@@ -183,11 +187,22 @@ def _reacquire(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray, md: 
     if len(free) == 0:
         return mt, md
     bi, pi = points_in_boxes(centers[free], track_boxes[lost])
+    # ... and is not a blob far larger than the vehicle (a merge of several).
+    area = boxes[free[pi], 2] * boxes[free[pi], 3]
+    ok = area <= 2.0 * track_boxes[lost[bi], 2] * track_boxes[lost[bi], 3]
+    bi, pi = bi[ok], pi[ok]
     if len(bi) == 0:
         return mt, md
     dist = np.linalg.norm(centers[free[pi]] - tracks.x[lost[bi], :2], axis=1)
     rt, rd = assign(bi, pi, dist, len(lost), len(free))
     return np.concatenate([mt, lost[rt]]), np.concatenate([md, free[rd]])
+
+
+def _intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Intersection areas of boxes a (K, 4) and b (K, 4), pairwise by row."""
+    w = np.minimum(a[:, 0] + a[:, 2], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0], b[:, 0])
+    h = np.minimum(a[:, 1] + a[:, 3], b[:, 1] + b[:, 3]) - np.maximum(a[:, 1], b[:, 1])
+    return np.clip(w, 0, None) * np.clip(h, 0, None)
 
 
 def overlap_of_smaller(box: np.ndarray, others: np.ndarray) -> np.ndarray:

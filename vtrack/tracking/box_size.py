@@ -18,7 +18,8 @@ outline noise, where it shows the whole vehicle:
   estimate is what is wrong (a track started on a part of a vehicle, or on two): the size
   starts again from the detection;
 - a vehicle coming out from behind an occluder or into the picture grows by at most the
-  distance it travelled (its `reach`): such growth sets the size to the detection at once,
+  distance it travelled (its `reach`, and at most double): such growth sets the size to
+  the detection at once,
   without teaching the rate (emerging is not perspective growth); a larger jump is a merge;
 - a side cut by the image border is a lower bound: smaller than predicted, it says nothing.
 """
@@ -76,12 +77,10 @@ class BoxSizeFilter:
         return np.exp(2 * s[:, :2]) * Ps[:, [0, 1], [0, 1]]
 
     def update(self, tracks: TrackTable, idx: np.ndarray, sizes: np.ndarray,
-               cut: np.ndarray, reach: np.ndarray, t: float) -> np.ndarray:
+               cut: np.ndarray, t: float) -> np.ndarray:
         """Update the sizes of tracks `idx` with detected sizes (K, 2) at time t; cut (K, 2)
-        marks sides on the image border, reach (K, 2) how far (px) each vehicle can have
-        come out from behind something since its last detection. Returns whole (K, 2): the
-        sides that showed the whole vehicle and updated the size (the module docstring)."""
-        grown = sizes - np.exp(tracks.s[idx, :2])
+        marks sides on the image border. Returns whole (K, 2): the sides that showed the
+        whole vehicle and updated the size (the module docstring)."""
         s, Ps = tracks.s[idx], tracks.Ps[idx]
         z = np.log(np.maximum(sizes, 1.0))
         var = self._var(sizes)
@@ -96,8 +95,7 @@ class BoxSizeFilter:
         same = rejected & (sign == tracks.mismatch_sign[idx])
         start = np.where(same, tracks.mismatch_t[idx], t)
         wait = np.where(nu > 0, self.reset_seconds[0], self.reset_seconds[1])
-        emerging = (nu > 0) & (grown <= reach)
-        reset = rejected & ((t - start >= wait - 1e-9) | emerging)
+        reset = rejected & (t - start >= wait - 1e-9)
         k, a = np.nonzero(reset)
         if len(k):
             s[k, a] = z[k, a]

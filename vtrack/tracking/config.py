@@ -53,9 +53,9 @@ class TrackerConfig:
     size_gate_probability: float = field(default=0.997, metadata=_h(
         "a detected side outside this chi-square gate (1 dof) of the predicted size is a "
         "partial view or a merge: it does not update the size (box_size.py)"))
-    size_grow_seconds: float = field(default=1.0, metadata=_h(
-        "detections larger than the size gate (by more than the vehicle can have come out "
-        "from behind something) for this long restart the size from them, s"))
+    size_grow_seconds: float = field(default=0.0, metadata=_h(
+        "detections larger than the size gate for this long restart the size from them, s "
+        "(0: at once; a track often starts on part of a vehicle coming into view)"))
     size_shrink_seconds: float = field(default=1.0, metadata=_h(
         "detections smaller than the size gate for this long restart the size from them, s"))
     init_size_rate_sigma: float = field(default=0.05, metadata=_h(
@@ -73,6 +73,13 @@ class TrackerConfig:
     max_coast_seconds: float = field(default=1.0, metadata=_h(
         "time a confirmed track coasts on its prediction without a detection before it is "
         "deleted, s"))
+    stand_speed: float = field(default=0.3, metadata=_h(
+        "a confirmed track that loses its detection while slower than this (box scales/s) "
+        "is a standing vehicle -- queued, parked, waiting at a light -- which the background "
+        "model absorbs and the motion check drops: it is held where it stopped"))
+    max_stand_seconds: float = field(default=60.0, metadata=_h(
+        "time a standing vehicle is held without a detection, s; when it drives off, the "
+        "detection that appears in its box takes it up again (same id)"))
     tentative_coast_seconds: float = field(default=0.1, metadata=_h(
         "time without a detection that deletes a track not yet confirmed, s"))
     split_evidence: float = field(default=0.25, metadata=_h(
@@ -90,7 +97,8 @@ class TrackerConfig:
             raise ValueError(f"tracker.measurement must be one of {', '.join(MEASUREMENTS)}")
         for name in ("jerk", "detection_sigma", "init_speed_sigma", "init_accel_sigma",
                      "max_gate", "split_evidence", "size_psd", "size_sigma",
-                     "init_size_rate_sigma", "size_rate_seconds", "size_shrink_seconds", "confirm_seconds", "max_coast_seconds",
+                     "init_size_rate_sigma", "size_rate_seconds", "size_shrink_seconds", "stand_speed",
+                     "max_stand_seconds", "confirm_seconds", "max_coast_seconds",
                      "tentative_coast_seconds"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"tracker.{name} must be positive")

@@ -2,7 +2,8 @@
 
 tentative -> confirmed once detected in `confirm_fraction` of the frames of the last
 `confirm_seconds` and moved `confirm_motion` box scales (static clutter never does) ->
-coasting on the prediction while detections are lost -> deleted after `max_coast_seconds`
+coasting on the prediction while detections are lost (held in place, for up to
+`max_stand_seconds`, when it was standing) -> deleted after `max_coast_seconds`
 without a detection (a tentative track after `tentative_coast_seconds`), when its whole
 predicted box has left the image, or as the duplicate of an older track.
 """
@@ -52,6 +53,7 @@ class Initiator:
         table.hitmask = np.zeros(k, dtype=np.int64)
         table.misses = np.zeros(k, dtype=int)
         table.killed = np.zeros(k, dtype=bool)
+        table.standing = np.zeros(k, dtype=bool)
         table.id = np.zeros(k, dtype=int)
         table.uid = np.arange(self.next_uid, self.next_uid + k)
         self.next_uid += k
@@ -59,10 +61,19 @@ class Initiator:
         return table
 
 
-def record_hits(tracks: TrackTable, hit: np.ndarray, window: int) -> None:
-    """Shift this frame's hits into each track's hit mask and count its misses."""
+def record_hits(tracks: TrackTable, hit: np.ndarray, window: int, stand_speed: float
+                ) -> None:
+    """Shift this frame's hits into each track's hit mask and count its misses; a confirmed
+    track without a detection that surely moves slower than stand_speed (box scales/s; its
+    speed plus two standard deviations) is standing: it is held where it stopped (velocity
+    and acceleration set to 0) until a detection takes it up again."""
     tracks.hitmask = ((tracks.hitmask << 1) | hit) & ((1 << window) - 1)
     tracks.misses = np.where(hit, 0, tracks.misses + 1)
+    sd = np.sqrt(tracks.P[:, 2, 2] + tracks.P[:, 3, 3])
+    slow = np.hypot(tracks.x[:, 2], tracks.x[:, 3]) + 2 * sd < stand_speed * tracks.scale
+    stops = (tracks.id > 0) & ~hit & ~tracks.standing & slow
+    tracks.x[stops, 2:] = 0.0
+    tracks.standing = (tracks.standing | stops) & ~hit
 
 
 def fate(tracks: TrackTable, t: float, width: int, height: int, cfg: TrackerConfig
@@ -74,7 +85,9 @@ def fate(tracks: TrackTable, t: float, width: int, height: int, cfg: TrackerConf
     inside = ((x >= -m[:, 0]) & (x <= width + m[:, 0])
               & (y >= -m[:, 1]) & (y <= height + m[:, 1]))
     lost_for = t - tracks.hist_t[:, 0]
-    limit = np.where(tracks.id > 0, cfg.max_coast_seconds, cfg.tentative_coast_seconds)
+    limit = np.where(tracks.id > 0, np.where(tracks.standing, cfg.max_stand_seconds,
+                                             cfg.max_coast_seconds),
+                     cfg.tentative_coast_seconds)
     alive = lost_for <= limit + 1e-9
     return inside, alive & ~tracks.killed
 

@@ -28,6 +28,7 @@ class TrackTable:
     hitmask: np.ndarray    # (N,) bit i: detected i frames ago
     misses: np.ndarray     # (N,) frames since the last detection
     killed: np.ndarray     # (N,) a duplicate of an older track, deleted this frame
+    standing: np.ndarray   # (N,) a standing vehicle held without detections (lifecycle.py)
     id: np.ndarray         # (N,) public id, 0 while tentative
     uid: np.ndarray        # (N,) internal id, unique for the run
     gap_p: np.ndarray      # (N, 2) where a gap between two pieces was first seen
@@ -99,6 +100,7 @@ _LAYOUT = {  # per-track shape and dtype of each column
     "mismatch_t": ((2,), float), "mismatch_sign": ((2,), float), "ref_p": ((2,), float),
     "ref_s": ((), float), "origin": ((2,), float), "hist_p": ((3, 2), float),
     "hist_t": ((3,), float), "hist_s": ((3, 2), float), "count": ((), int),
-    "hitmask": ((), np.int64), "misses": ((), int), "killed": ((), bool), "id": ((), int),
+    "hitmask": ((), np.int64), "misses": ((), int), "killed": ((), bool), "standing": ((), bool),
+    "id": ((), int),
     "uid": ((), int), "gap_p": ((2,), float), "gap_t": ((), float),
 }

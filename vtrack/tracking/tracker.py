@@ -57,7 +57,9 @@ class FrameTracks:
 
 
 class Tracker:
-    """Array-based multi-target tracker. Call `step(frame, t, centers, boxes)` every frame."""
+    """Array-based multi-target tracker. Per frame: `predict(t, motion)` (the predicted boxes,
+    e.g. for the detector to split merged blobs), then `update(frame, t, centers, boxes)`;
+    or `step`, which does both."""
 
     def __init__(self, cfg: TrackerConfig, width: int, height: int, fps: float = 25.0
                  ) -> None:
@@ -81,10 +83,14 @@ class Tracker:
 
     def step(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
              motion: np.ndarray | None = None) -> FrameTracks:
-        """Advance all tracks to time t (s) and assimilate this frame's detections; `motion`
-        (2, 3) is the camera's, mapping the previous frame's pixels onto this frame's."""
-        centers = np.asarray(centers, dtype=float).reshape(-1, 2)
-        boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
+        """predict, then update (see those)."""
+        self.predict(t, motion)
+        return self.update(frame, t, centers, boxes)
+
+    def predict(self, t: float, motion: np.ndarray | None = None) -> np.ndarray:
+        """Advance all tracks to time t (s); `motion` (2, 3) is the camera's, mapping the
+        previous frame's pixels onto this frame's. Returns the confirmed tracks' predicted
+        boxes (K, 4), x, y, w, h (not clipped to the image)."""
         dt = 0.0 if self.t_prev is None else t - self.t_prev
         self.t_prev = t
         tracks = self.tracks
@@ -93,6 +99,17 @@ class Tracker:
         growth = self.field.log_rate(tracks.x[:, :2], tracks.x[:, 2:4])
         self.bank.predict(tracks, dt)
         tracks.s, tracks.Ps = self.sizes.predict(tracks.s, tracks.Ps, dt, growth)
+        conf = tracks.id > 0
+        size = tracks.size[conf]
+        return np.hstack([tracks.x[conf, :2] - size / 2, size])
+
+    def update(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray
+               ) -> FrameTracks:
+        """Assimilate frame `frame`'s detections (centres (D, 2), boxes (D, 4)) into the
+        tracks predicted to its time t."""
+        centers = np.asarray(centers, dtype=float).reshape(-1, 2)
+        boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
+        tracks = self.tracks
         a = self.associator.associate(tracks, t, centers, boxes)
         tracks.killed[a.duplicates] = True
         innov = np.full(len(tracks), np.nan)
@@ -112,7 +129,7 @@ class Tracker:
                                                     np.zeros(len(new), dtype=bool))])
         det_of = np.concatenate([det_of, started])
         hit = np.concatenate([hit, np.ones(len(new), dtype=bool)])
-        record_hits(tracks, hit, self.confirmer.window)
+        record_hits(tracks, hit, self.confirmer.window, self.cfg.stand_speed)
 
         inside, alive = fate(tracks, t, self.width, self.height, self.cfg)
         self.confirmer.confirm(tracks, hit, inside & alive)
@@ -172,12 +189,8 @@ class Tracker:
             return np.zeros(0)
         size, pos_var = tracks.size[mt], tracks.P[mt][:, [0, 1], [0, 1]]
         size_var = self.sizes.px_var(tracks.s[mt], tracks.Ps[mt])
-        since = t - np.where(tracks.count[mt] > 0, tracks.hist_t[mt, 0], t)
-        speed = np.abs(tracks.x[mt, 2:4]) + 2 * np.sqrt(tracks.P[mt][:, [2, 3], [2, 3]])
-        reach = speed * since[:, None] + 2.0 * detection_sigma(cfg, tracks.scale[mt])[:, None]
         whole = self.sizes.update(tracks, mt, boxes[:, 2:],
-                                  border_cut(boxes, self.width, self.height).any(axis=2),
-                                  reach, t)
+                                  border_cut(boxes, self.width, self.height).any(axis=2), t)
         self._learn_scale(mt[whole.all(axis=1) & ~split], boxes[whole.all(axis=1) & ~split])
         if split.any():
             k = mt[split]

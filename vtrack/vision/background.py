@@ -19,6 +19,7 @@ class Mog2Background:
         self.fixed_rate = learning_rate
         self.warmup = warmup_frames
         self.frames = 0
+        self.primed = False
         self._mog = cv2.createBackgroundSubtractorMOG2(history, var_threshold, detect_shadows)
         self._mog.setShadowThreshold(shadow_ratio)
         self._mog.setVarMin(var_min)  # OpenCV keeps var_min <= var_init <= var_max
@@ -34,7 +35,17 @@ class Mog2Background:
         """
         if self.fixed_rate >= 0:
             return self.fixed_rate
-        return -1.0 if self.frames <= self.warmup else 1.0 / self.history
+        return -1.0 if self.frames <= self.warmup and not self.primed else 1.0 / self.history
+
+    def image(self) -> np.ndarray:
+        """The model's background image (its most probable colour per pixel)."""
+        return self._mog.getBackgroundImage()
+
+    def initialise(self, background: np.ndarray) -> None:
+        """Start the model from a background image: one mode per pixel at its colour, with
+        MOG2's initial variance (learning rate 1)."""
+        self._mog.apply(background, learningRate=1.0)
+        self.primed = True
 
     def apply(self, small: np.ndarray) -> np.ndarray:
         """Learn `small` and return MOG2's mask (255 foreground, 127 shadow, 0 background)."""

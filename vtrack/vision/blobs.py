@@ -69,11 +69,12 @@ class MotionMap:
 
 def find_blobs(fg: np.ndarray, moving: np.ndarray | None, sx: float, sy: float,
                min_pixels: int, min_area: float, max_area: float, min_fill: float,
-               min_motion: float) -> tuple[np.ndarray, np.ndarray]:
+               min_motion: float) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """Outer contours of the mask kept when their size and fill ratio (area / box area:
     foliage blobs are ragged) look like a vehicle and, with a motion map, something inside
     their box moved (ghosts of vehicles present at the start are static). Returns boxes
-    (K, 4) and areas (K,) mapped to full resolution by the scale factors (sx, sy).
+    (K, 4) and areas (K,) mapped to full resolution by the scale factors (sx, sy), and the
+    kept contours (mask pixels).
 
     findContours is ~30x cheaper than connectedComponentsWithStats here; a blob's pixel
     count follows from its contour polygon by Pick's theorem, A + B/2 + 1 (holes filled).
@@ -81,7 +82,7 @@ def find_blobs(fg: np.ndarray, moving: np.ndarray | None, sx: float, sy: float,
     """
     contours, _ = cv2.findContours(fg, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     if not contours:
-        return np.zeros((0, 4)), np.zeros(0)
+        return np.zeros((0, 4)), np.zeros(0), []
     stats = np.array([(*cv2.boundingRect(c), cv2.contourArea(c) + len(c) / 2 + 1)
                       for c in contours], dtype=np.float64)
     x, y = stats[:, 0] * sx, stats[:, 1] * sy
@@ -94,4 +95,5 @@ def find_blobs(fg: np.ndarray, moving: np.ndarray | None, sx: float, sy: float,
         x1, y1 = x0 + bw, y0 + bh
         changed = moving[y1, x1] - moving[y0, x1] - moving[y1, x0] + moving[y0, x0]
         keep &= changed >= min_motion * bw * bh
-    return np.stack([x, y, w, h], axis=1)[keep], area[keep]
+    kept = [c for c, k in zip(contours, keep, strict=True) if k]
+    return np.stack([x, y, w, h], axis=1)[keep], area[keep], kept

@@ -32,6 +32,7 @@ Boxes, centres and areas are mapped back to full-resolution pixels.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -40,7 +41,8 @@ import numpy as np
 from vtrack.vision.background import Mog2Background
 from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
-from vtrack.vision.shadows import drop_shadows
+from vtrack.vision.shadows import drop_shadows, textured_shadow
+from vtrack.vision.split import holders, split_blob
 from vtrack.vision.stabilise import IDENTITY, Stabiliser, compose, invert, rescale, transform_boxes
 
 __all__ = ["DetectorConfig", "Detections", "MotionDetector", "downscale_factor"]
@@ -61,7 +63,12 @@ class DetectorConfig:
                               "sensor noise (OpenCV's default 4 flickers on compressed video)")
     learning_rate: float = _f(-1.0, "MOG2 learning rate, 0..1 (negative: MOG2's fast start "
                                      "1 / (2 n) during the warm-up, then 1 / history)")
-    detect_shadows: bool = _f(False, "let MOG2 label shadows (127) so they can be dropped")
+    detect_shadows: bool = _f(True, "let MOG2 label shadows (127): those whose texture is "
+                                     "the road's are dropped, textured ones (dark vehicle "
+                                     "parts) kept (shadows.py)")
+    shadow_texture: float = _f(0.06, "std of the frame / background ratio over 5x5 pixels "
+                                     "above which a shadow-labelled pixel is a vehicle's; "
+                                     "0: drop every shadow-labelled pixel")
     shadow_ratio: float = _f(0.5, "MOG2 shadow threshold tau: darker than this is not shadow")
     shadow_threshold: int = _f(200, "mask values below this (MOG2 shadows are 127) are dropped")
     detect_width: int = _f(640, "frames wider than this are halved (INTER_AREA) until they "
@@ -80,11 +87,19 @@ class DetectorConfig:
                                  "2 frames; static blobs (ghosts of vehicles present at the "
                                  "start, stopped vehicles) are dropped; 0: off")
     roi_mask: str = _f("", "optional mask image (white = detect), resized to the frame")
-    warmup_frames: int = _f(15, "first frames only teach the background (no detections)")
+    warmup_frames: int = _f(15, "first frames only teach the background (no detections), "
+                                "unless the background was estimated from the video")
+    init_background_seconds: float = _f(6.0, "estimate the background from frames sampled "
+                                             "over the first this many seconds of a file "
+                                             "(their median), so that vehicles in view in "
+                                             "the first frame are detected; 0: off")
+    init_background_samples: int = _f(25, "frames sampled for that estimate")
     stabilise: bool = _f(True, "estimate the camera's sway per frame (similarity transform "
                                "against a reference frame) and warp frames onto it before "
                                "background subtraction; the tracker shifts its tracks by the "
                                "same motion. Switches itself off on a still camera")
+    split_merged: bool = _f(True, "divide a blob that holds the predicted boxes of several "
+                                  "tracked vehicles among them (split.py)")
     stabilise_still_px: float = _f(0.5, "a camera whose image corners move less than this "
                                          "(detection pixels) over the first 2 s is still")
 
@@ -96,6 +111,7 @@ class DetectorConfig:
             "var_min": self.var_min > 0,
             "learning_rate": self.learning_rate <= 1,
             "shadow_ratio": 0 < self.shadow_ratio < 1,
+            "shadow_texture": self.shadow_texture >= 0,
             "shadow_threshold": 1 <= self.shadow_threshold <= 255,
             "detect_width": self.detect_width >= 16,
             "blur": self.blur >= 0,
@@ -107,6 +123,8 @@ class DetectorConfig:
             "min_fill": 0 <= self.min_fill <= 1,
             "min_motion": 0 <= self.min_motion <= 1,
             "warmup_frames": self.warmup_frames >= 0,
+            "init_background_seconds": self.init_background_seconds >= 0,
+            "init_background_samples": self.init_background_samples >= 3,
             "stabilise_still_px": self.stabilise_still_px >= 0,
         }
         for name, ok in checks.items():
@@ -163,8 +181,29 @@ class MotionDetector:
         """Frames seen so far."""
         return self.background.frames
 
-    def detect(self, image: np.ndarray) -> Detections:
-        """Update the background with `image` (HxWx3 BGR uint8) and return its blobs."""
+    def initialise(self, images: Iterable[np.ndarray]) -> None:
+        """Start the background model from the median of `images` (frames sampled across
+        the first seconds of the video: a vehicle covers a pixel in few of them), aligned
+        onto the stabiliser's reference; detection then starts with the first frame."""
+        samples = []
+        for image in images:
+            small = self.prepare(image)
+            if self.stabiliser is not None:
+                small = self.stabiliser.align(small)
+            samples.append(small)
+        if len(samples) < 3:
+            return
+        median = np.median(np.stack(samples), axis=0).astype(np.uint8)
+        if self.gain is not None:
+            median = self.gain(median)
+        self.background.initialise(median)
+    def detect(self, image: np.ndarray,
+               priors: Callable[[np.ndarray], np.ndarray] | None = None) -> Detections:
+        """Update the background with `image` (HxWx3 BGR uint8) and return its blobs.
+
+        priors(motion), when given, is called once per frame as soon as the camera's motion
+        (2, 3) is known and returns the tracked vehicles' predicted boxes (K, 4) in this
+        frame's pixels: a blob holding several of them is divided among them (split.py)."""
         cfg = self.cfg
         small = self.prepare(image)
         motion = IDENTITY
@@ -173,18 +212,44 @@ class MotionDetector:
             camera = rescale(m, self._sx, self._sy)
             motion = compose(camera, invert(self._camera))
             self._camera = camera
+        predicted = priors(motion) if priors is not None else np.zeros((0, 4))
         if self.gain is not None:
             small = self.gain(small)
         raw = self.background.apply(small)
-        self.foreground = self.clean(drop_shadows(raw, cfg.shadow_threshold))
+        if cfg.detect_shadows and cfg.shadow_texture > 0:
+            fg = textured_shadow(raw, small, self.background.image(), cfg.shadow_texture)
+        else:
+            fg = drop_shadows(raw, cfg.shadow_threshold)
+        self.foreground = self.clean(fg)
         moving = None
         if self.motion is not None:
             moving = self.motion(small if small is not image else image.copy())
-        if self.frames <= cfg.warmup_frames:
+        if self.frames <= cfg.warmup_frames and not self.background.primed:
             return Detections.empty(motion)
-        boxes, areas = find_blobs(self.foreground, moving, self._sx, self._sy,
-                                  cfg.min_pixels, cfg.min_area,
-                                  cfg.max_area_fraction * self.width * self.height,
-                                  cfg.min_fill, cfg.min_motion)
+        boxes, areas, contours = find_blobs(self.foreground, moving, self._sx, self._sy,
+                                            cfg.min_pixels, cfg.min_area,
+                                            cfg.max_area_fraction * self.width * self.height,
+                                            cfg.min_fill, cfg.min_motion)
+        if cfg.split_merged and len(boxes) and len(predicted) >= 2:
+            boxes, areas = self._split(boxes, areas, contours, predicted)
         boxes = transform_boxes(self._camera, boxes)  # the reference's pixels -> this frame's
         return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas, motion)
+
+    def _split(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
+               predicted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Blobs (full resolution, reference pixels) holding several predicted boxes (this
+        frame's pixels) replaced by their pieces (split.py)."""
+        scale = np.array([self._sx, self._sy, self._sx, self._sy])
+        pred = transform_boxes(invert(self._camera), predicted) / scale  # mask pixels
+        out_b, out_a = [], []
+        for box, area, contour in zip(boxes, areas, contours, strict=True):
+            held = holders(box / scale, pred)
+            if len(held):
+                pieces, counts = split_blob(contour, pred[held], self.cfg.min_pixels // 2)
+                if len(pieces) >= 2:
+                    out_b.append(pieces * scale)
+                    out_a.append(counts * self._sx * self._sy)
+                    continue
+            out_b.append(box[None])
+            out_a.append(np.array([area]))
+        return np.concatenate(out_b), np.concatenate(out_a)

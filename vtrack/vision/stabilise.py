@@ -109,6 +109,12 @@ class Stabiliser:
         m[:, 2] *= s  # estimation pixels -> detection pixels (the linear part is unchanged)
         return m
 
+    def align(self, small: np.ndarray) -> np.ndarray:
+        """`small` warped onto the reference (the first frame aligned becomes it), without
+        counting it as a frame of the video."""
+        m = self.estimate(small)
+        return small if m is None else _warp(small, m)
+
     def __call__(self, small: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(small warped onto the reference, M reference -> current) for the next frame."""
         self.frames += 1
@@ -128,9 +134,14 @@ class Stabiliser:
         self.max_shift = max(self.max_shift, corner_shift(m, self.width, self.height))
         if self.frames >= self.probe_frames and self.max_shift <= self.still_px:
             self.active = False  # a still camera: nothing to compensate
-        if corner_shift(m, self.width, self.height) <= 0.05:
-            return small, m
-        warped = cv2.warpAffine(small, m, (self.width, self.height),
-                                flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                borderMode=cv2.BORDER_REPLICATE)
-        return warped, m
+        return _warp(small, m), m
+
+
+def _warp(small: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """`small` resampled onto the reference by M (reference -> small); unchanged when M
+    moves no corner by more than 0.05 px."""
+    h, w = small.shape[:2]
+    if corner_shift(m, w, h) <= 0.05:
+        return small
+    return cv2.warpAffine(small, m, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_REPLICATE)
