@@ -22,9 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vtrack.estimation.filters import GaussianFilter, make_filter
+from vtrack.estimation.filters import GaussianFilter
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import ConstantAcceleration, position_measurement
+from vtrack.filter_kinds import make_filter
 from vtrack.tracking.association import assign, gated_pairs, nearest_pairs
 from vtrack.tracking.measurements import finite_difference_measurement
 
