@@ -14,7 +14,7 @@ It writes, next to this file:
 * experiments/<name>.json: `vtrack experiment NAME --json` on the shrunk settings the
   experiment tests use (SHRINK below), so the suite can compare them in seconds;
 * experiments_full/<name>.json: `vtrack experiment NAME --json --runs 4 --seed 1` (full
-  size; scripts/check_outputs.py compares them, too slow for the suite).
+  size; tests/golden/check_outputs.py compares them, too slow for the suite).
 
 tests/experiments/test_outputs_unchanged.py compares the current code with these files.
 """

@@ -11,7 +11,7 @@ The seed's scenario-3 measurement equation (azimuth/elevation of a 3-D target) c
 - r-underestimated: the filters assume sigma_w = 0.01 (the case where fading can hurt);
 - 3a-ankf1-adapt-q / 3a-ankf1-adapt-rq: ANKF1 estimating Q only / R and Q in case 3a.
 
-The adaptive filters are the reconstruction of SEEDS 2.4 (vtrack.estimation.adaptive) with
+The adaptive filters are the reconstruction of SEEDS 2.4 (vtrack.adaptive.ankf) with
 its defaults: window N = 20, R floor 0.01 diag(R_nom), lambda_max = 1.5, ratio clip
 [0.01, 100].
 """

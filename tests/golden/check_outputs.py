@@ -4,7 +4,7 @@ outputs recorded before the estimation refactor (tests/golden/experiments_full, 
 tests/golden/record_golden.py). Prints one line per experiment; exit 1 if anything recorded
 changed (new keys are allowed). Takes ~2 minutes; the test suite checks shrunk versions.
 
-    .venv/bin/python scripts/check_outputs.py [NAME ...]
+    .venv/bin/python tests/golden/check_outputs.py [NAME ...]
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-GOLDEN = Path(__file__).resolve().parents[1] / "tests" / "golden"
+GOLDEN = Path(__file__).resolve().parent
 sys.path.insert(0, str(GOLDEN))
 import record_golden as rg  # noqa: E402
 
