@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pytest
 
+from record_golden import assert_unchanged
 from vtrack.cli import main
 from vtrack.estimation.bounds import paired_difference
 from vtrack.estimation.models import Bearings
@@ -112,6 +113,7 @@ def test_ankf_json(capsys):
     assert main(["experiment", "ankf", "--runs", "2", "--seed", "3", "--json"]) == 0
     out = capsys.readouterr().out
     summary = json.loads(out)
+    assert_unchanged("ankf", summary)
     assert out.count("\n") == 1
     assert set(summary["results"]) == {"ekf", "ankf1", "ankf2"}
     for kind, entry in summary["results"].items():

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from record_golden import assert_unchanged
 from vtrack.cli import main
 from vtrack.estimation.bounds import chi2_band, paired_difference
 from vtrack.estimation.models import Bearings
@@ -177,6 +178,7 @@ def test_json_schema_and_same_seed_same_json(capsys, tmp_path, name, cases):
     out = _cli(capsys, "experiment", name, "--runs", "2", "--seed", "7", "--json",
                "--plot", str(tmp_path / "plot.png"))
     summary = json.loads(out)          # exactly one JSON object and nothing else
+    assert_unchanged(name, summary)    # outputs of the kinds before the refactor
     assert out.strip().startswith("{") and out.count("\n") == 1
     _check_results(summary["results"], KINDS)
     for kind in ("ekf", "ukf", "ckf"):

@@ -4,6 +4,7 @@ import json
 
 import pytest
 
+from record_golden import assert_unchanged
 from vtrack.experiments import fuzzy as fz
 
 
@@ -31,6 +32,7 @@ def test_json_schema_and_determinism(small_fuzzy, cli_stdout):
     out2 = cli_stdout(["experiment", "fuzzy", "--runs", "3", "--seed", "4", "--json"])
     assert out1 == out2
     data = json.loads(out1)
+    assert_unchanged("fuzzy", data)
     assert set(data["results"]) == {"kf", "fuzzy-r", "fuzzy-q"}
     for entry in list(data["results"].values()) + list(data["cases"]["E3"]["results"].values()):
         assert isinstance(entry["rmse"], float) and entry["rmse"] > 0

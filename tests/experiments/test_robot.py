@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from record_golden import assert_unchanged
 from vtrack.estimation.montecarlo import run_generators
 from vtrack.experiments import robot as rb
 
@@ -90,6 +91,7 @@ def test_json_schema_and_determinism(small_robot, cli_stdout):
     out2 = cli_stdout(["experiment", "robot", "--runs", "2", "--seed", "3", "--json"])
     assert out1 == out2
     data = json.loads(out1)
+    assert_unchanged("robot", data)
     assert set(data["results"]) == {"ukf", "srukf", "crukf", "ekf", "iekf", "iplf"}
     assert "unsound" in data["description"] and "EXPERIMENTAL" in data["description"]
     for kind in ("ukf", "srukf"):

@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from record_golden import assert_unchanged
 from vtrack.estimation.montecarlo import run_sequence
 from vtrack.experiments import siim as si
 from vtrack.filter_kinds import make_filter
@@ -69,6 +70,7 @@ def test_json_schema_and_determinism(monkeypatch, cli_stdout):
     out2 = cli_stdout(["experiment", "siim", "--runs", "20", "--seed", "1", "--json"])
     assert out1 == out2
     data = json.loads(out1)
+    assert_unchanged("siim", data)
     assert set(data["results"]) == {"ekf", "siim-ekf"}
     for entry in data["results"].values():
         for key in ("rmse", "pcrlb_rmse", "anees", "speed_rmse"):

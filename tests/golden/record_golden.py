@@ -12,11 +12,12 @@ It writes, next to this file:
   for each (config, kind, options, log) the exit code of `vtrack filter`, the SHA-256 of its
   ESTIMATES.csv and every 25th row at full precision (or the one-line error);
 * experiments/<name>.json: `vtrack experiment NAME --json` on the shrunk settings the
-  experiment tests use (SHRINK below), so the suite can compare them in seconds;
+  experiment JSON tests use (SHRINK below); those tests call assert_unchanged;
 * experiments_full/<name>.json: `vtrack experiment NAME --json --runs 4 --seed 1` (full
   size; tests/golden/check_outputs.py compares them, too slow for the suite).
 
-tests/experiments/test_outputs_unchanged.py compares the current code with these files.
+tests/experiments/test_outputs_unchanged.py (the filter cases) and the experiments' JSON tests
+(assert_unchanged) compare the current code with these files.
 """
 
 from __future__ import annotations
@@ -298,6 +299,14 @@ def missing_or_changed(expected: object, got: object, path: str = "") -> list[st
     if expected != got or type(expected) is not type(got):
         return [f"{path}: {expected!r} -> {got!r}"]
     return []
+
+
+def assert_unchanged(name: str, summary: dict) -> None:
+    """`summary`, the JSON of experiment `name` on its SHRINK settings, holds every value
+    recorded in experiments/<name>.json, bit for bit (new keys may be added)."""
+    want = json.loads((HERE / "experiments" / f"{name}.json").read_text())
+    diff = missing_or_changed(want, json.loads(json.dumps(summary)))
+    assert not diff, "\n".join(diff[:20])
 
 
 def main() -> None:
