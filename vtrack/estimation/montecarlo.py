@@ -140,9 +140,8 @@ def monte_carlo(kind: str, factory: Callable[[int], GaussianFilter], Z: np.ndarr
     blank = FilterOutput(x=np.full((K, n), np.nan), P=np.full((K, n, n), np.nan),
                          nis=np.full(K, np.nan), nis_dof=np.zeros(K, dtype=int),
                          x0=np.full(n, np.nan), P0=np.full((n, n), np.nan),
-                         series={name: np.full(np.shape(v), np.nan) for name, v in
-                                 (good.series if good else {k: np.empty(K) for k in record or {}}
-                                  ).items()})
+                         series={name: np.full(good.series[name].shape if good else K, np.nan)
+                                 for name in record or {}})
     rows = [blank if o is None else o for o in outs]
 
     def stack(name: str) -> np.ndarray:
