@@ -2,8 +2,9 @@
 
 This is the I/O edge around vtrack.estimation: it parses CONFIG.toml into a motion model, a
 measurement model and a filter (`load_config`), reads MEASUREMENTS.csv (`read_measurements`),
-runs the filter row by row (`run_filter`) and writes ESTIMATES.csv atomically
-(`write_estimates`). Every problem with the user's files is raised as InputError naming the
+runs the filter row by row through the Monte Carlo harness's run_sequence (`run_log`),
+writes ESTIMATES.csv atomically (`write_estimates`) and, with --report, the NIS
+consistency of the run (`consistency_report`). Every problem with the user's files is raised as InputError naming the
 file (and the line or key), which the CLI prints as one `error:` line with exit code 2.
 
 Timing convention (INTERFACE.md): (x0, P0) is the prior one step `dt` before the first row;
@@ -23,9 +24,7 @@ from typing import Any
 import numpy as np
 
 from vtrack.errors import InputError, MissingExtraError
-from vtrack.fileio import open_input, read_toml
-from vtrack.estimation.filters import GaussianFilter, make_filter
-from vtrack.estimation.linalg import EstimationError
+from vtrack.estimation.filters import GaussianFilter
 from vtrack.estimation.models import (
     Bearings,
     ConstantAcceleration,
@@ -37,6 +36,9 @@ from vtrack.estimation.models import (
     pose_measurement,
     position_measurement,
 )
+from vtrack.estimation.montecarlo import FilterOutput, StepError, nis_consistency, run_sequence
+from vtrack.fileio import open_input, read_toml, write_json
+from vtrack.filter_kinds import make_filter
 
 MOTION_MODELS = ("wiener-velocity", "constant-acceleration", "unicycle")
 MEASUREMENT_MODELS = ("bearings", "position", "range", "pose")
@@ -376,46 +378,18 @@ def read_measurements(path: str | os.PathLike, cfg: FilterConfig) -> Measurement
 # -------------------------------------------------------------------------------- run
 
 
-class FilterRunError(EstimationError):
-    """The filter failed at measurement row `row` (0-based)."""
-
-    def __init__(self, row: int, t: float, cause: str) -> None:
-        super().__init__(f"row {row}: t = {t!r}: {cause}")
-        self.row, self.t, self.cause = row, t, cause
-
-
-def run_filter(filt: GaussianFilter, t: np.ndarray, z: np.ndarray, dt0: float,
-               u: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Run `filt` over rows (t_k, z_k[, u_k]): predict over t_k - t_{k-1} (dt0 for the first
-    row) with input u_k, then update with the finite cells of z_k (NaN = missing; an all-NaN
-    row only predicts). Returns the posterior means (K, n) and covariances (K, n, n).
-
-    Any estimation failure (non-PD covariance, inf cell, overflow, non-finite result) raises
-    FilterRunError naming the row."""
-    K = len(t)
-    n = filt.x.shape[0]
-    xs = np.empty((K, n))
-    Ps = np.empty((K, n, n))
-    prev = t[0] - dt0 if K else 0.0
-    with np.errstate(all="ignore"):  # warnings would break the one-line error contract
-        for k in range(K):
-            try:
-                filt.predict(float(t[k] - prev), None if u is None else u[k])
-                filt.update(z[k])
-                x, P = filt.x, filt.P
-                if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
-                    raise EstimationError("the posterior mean or covariance is not finite")
-            except (EstimationError, np.linalg.LinAlgError, ArithmeticError) as exc:
-                cause = " ".join(str(exc).split())
-                if isinstance(exc, OverflowError):
-                    cause = "numerical overflow (is the time step or a value absurdly large?)"
-                elif not isinstance(exc, EstimationError):
-                    cause = f"numerical failure ({type(exc).__name__}: {cause})"
-                raise FilterRunError(k, float(t[k]), cause) from exc
-            xs[k] = x
-            Ps[k] = P
-            prev = t[k]
-    return xs, Ps
+def run_log(filt: GaussianFilter, meas: Measurements, dt0: float) -> FilterOutput:
+    """Run `filt` over the log's rows (the harness's run_sequence): row k predicts over
+    t_k - t_{k-1} (dt0 for the first row) with its inputs, then updates with the finite
+    cells of z_k (an all-missing row only predicts). Any estimation failure (non-PD
+    covariance, overflow, non-finite posterior) is an InputError naming the file's line."""
+    dts = np.diff(meas.t, prepend=meas.t[0] - dt0) if len(meas.t) else np.empty(0)
+    try:
+        return run_sequence(filt, meas.z, dts, meas.u, require_finite=True)
+    except StepError as exc:
+        raise InputError(f"{meas.path}: line {meas.lines[exc.step]} (t = "
+                         f"{float(meas.t[exc.step])!r}): filter {filt.kind!r} failed: "
+                         f"{exc.cause}") from None
 
 
 def estimates_rows(t: np.ndarray, xs: np.ndarray, Ps: np.ndarray) -> list[list[str]]:
@@ -447,20 +421,32 @@ def _rerun_logger():  # noqa: ANN202
     return rerun_log.log_filter_run
 
 
-def filter_files(config: str, measurements: str, out: str, rerun: str | None = None) -> int:
-    """`vtrack filter CONFIG.toml MEASUREMENTS.csv --out ESTIMATES.csv [--rerun FILE.rrd]`.
+def consistency_report(cfg: FilterConfig, meas: Measurements, out: FilterOutput
+                       ) -> dict[str, Any]:
+    """The --report JSON: the filter, the rows and updates, and the NIS test of the run
+    (montecarlo.nis_consistency)."""
+    return {"config": cfg.path, "measurements": meas.path, "kind": cfg.kind,
+            "options": cfg.options, "rows": len(meas.t),
+            **nis_consistency(out.nis, out.nis_dof)}
+
+
+def filter_files(config: str, measurements: str, out: str, rerun: str | None = None,
+                 report: str | None = None) -> int:
+    """`vtrack filter CONFIG.toml MEASUREMENTS.csv --out ESTIMATES.csv [--rerun FILE.rrd]
+    [--report REPORT.json]`.
 
     Everything is validated and computed before anything is written, so on any error no
     ESTIMATES.csv is created (or an existing one is left untouched)."""
     log = _rerun_logger() if rerun else None
     cfg = load_config(config)
     meas = read_measurements(measurements, cfg)
-    try:
-        xs, Ps = run_filter(cfg.build_filter(), meas.t, meas.z, cfg.dt, meas.u)
-    except FilterRunError as exc:
-        raise InputError(f"{measurements}: line {meas.lines[exc.row]} (t = {exc.t!r}): filter "
-                         f"{cfg.kind!r} failed: {exc.cause}") from None
+    run = run_log(cfg.build_filter(), meas, cfg.dt)
     if log is not None:
-        log(meas.t, xs, Ps, meas.z, cfg.sensors, rerun)
-    write_estimates(out, cfg, meas.t, xs, Ps)
+        log(meas.t, run.x, run.P, meas.z, cfg.sensors, rerun)
+    write_estimates(out, cfg, meas.t, run.x, run.P)
+    if report is not None:
+        try:
+            write_json(report, consistency_report(cfg, meas, run))
+        except OSError as exc:
+            raise InputError(f"{report}: cannot write: {exc.strerror or exc}") from None
     return 0

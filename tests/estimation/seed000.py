@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import expm
 
-from vtrack.estimation.filters import make_filter
+from vtrack.filter_kinds import make_filter
 from vtrack.estimation.linalg import wrap_angle
 from vtrack.estimation.models import Bearings, WienerVelocity
 

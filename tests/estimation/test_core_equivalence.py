@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from vtrack.estimation.filters import make_filter
+from vtrack.filter_kinds import make_filter
 from vtrack.estimation.models import WienerVelocity, position_measurement
 
 

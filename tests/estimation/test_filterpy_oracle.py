@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 import seed000 as S
 
-from vtrack.estimation.filters import make_filter
+from vtrack.filter_kinds import make_filter
 from vtrack.estimation.linalg import wrap_angle
 
 filterpy_kalman = pytest.importorskip("filterpy.kalman")

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import seed000 as S
 
-from vtrack.estimation.filters import make_filter
+from vtrack.filter_kinds import make_filter
 from vtrack.estimation.linalg import EstimationError
 from vtrack.estimation.models import Bearings, WienerVelocity
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import seed000 as S
 
-import vtrack.estimation.filters as filters_mod
+import vtrack.estimation.sigma_filters as filters_mod
 
 
 @pytest.mark.parametrize("kappa", [-1.0, -2.0, -3.5])

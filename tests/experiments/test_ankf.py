@@ -6,10 +6,11 @@ import json
 import numpy as np
 import pytest
 
+from record_golden import assert_unchanged
 from vtrack.cli import main
 from vtrack.estimation.bounds import paired_difference
 from vtrack.estimation.models import Bearings
-from vtrack.experiments import _bot as bot
+from vtrack.experiments import _bearings_scenario as scn
 from vtrack.experiments.ankf import scenarios
 
 RUNS = 20
@@ -17,14 +18,14 @@ RUNS = 20
 
 @pytest.fixture(scope="module")
 def seeds():
-    return bot.run_seeds(0, RUNS)
+    return scn.run_seeds(0, RUNS)
 
 
 def _simulate(name, seeds, kinds=None):
     scenario, filters, _ = scenarios()[name]
     if kinds is not None:
         filters = {k: v for k, v in filters.items() if k in kinds}
-    return bot.simulate(scenario, seeds, filters)
+    return scn.simulate(scenario, seeds, filters)
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +44,7 @@ def case_step(seeds):
 
 
 def _rmse(case, kind):
-    return bot.per_run_rmse(case.runs[kind], case.truth)
+    return scn.per_run_rmse(case.runs[kind], case.truth)
 
 
 @pytest.mark.parametrize("kind,opts,case", [
@@ -57,13 +58,13 @@ def test_batched_adaptive_filters_equal_the_core_filters(seeds, kind, opts, case
     the numbers of the per-run core filter objects (make_filter)."""
     scenario = scenarios()[case][0]
     few = seeds[:3]
-    truth = bot.turning_truth(few)
-    Z = bot.measure(truth, scenario.sensors, scenario.sigma_true, few)
-    motion = bot.CachedWienerVelocity(scenario.q_filter)
+    truth = scn.turning_truth(few)
+    Z = scn.measure(truth, scenario.sensors, scenario.sigma_true, few)
+    motion = scn.CachedWienerVelocity(scenario.q_filter)
     meas = Bearings(scenario.sensors, scenario.sigma_filter)
     x0s = np.zeros((3, 4))
-    batched = bot.run_filter(kind, motion, meas, Z, x0s, bot.P0, **opts)
-    per_run = bot.run_filter(kind, motion, meas, Z, x0s, bot.P0, batch=False, **opts)
+    batched = scn.run_filter(kind, motion, meas, Z, x0s, scn.P0, **opts)
+    per_run = scn.run_filter(kind, motion, meas, Z, x0s, scn.P0, batch=False, **opts)
     np.testing.assert_allclose(batched.x, per_run.x, rtol=0, atol=1e-9)
     np.testing.assert_allclose(batched.P, per_run.P, rtol=1e-9, atol=1e-12)
     assert set(batched.series) == set(per_run.series)
@@ -103,7 +104,7 @@ def test_ankf1_follows_the_r_step(case_step):
 def test_adaptive_filters_stay_above_the_reference_floor(case_3a, case_3b):
     for case in (case_3a, case_3b):
         for kind, run in case.runs.items():
-            mse_runs = np.mean(bot.squared_position_error(run, case.truth), axis=1)
+            mse_runs = np.mean(scn.squared_position_error(run, case.truth), axis=1)
             se = mse_runs.std(ddof=1) / np.sqrt(len(mse_runs))
             assert mse_runs.mean() + 3 * se >= np.mean(case.bound_var), kind
 
@@ -112,6 +113,7 @@ def test_ankf_json(capsys):
     assert main(["experiment", "ankf", "--runs", "2", "--seed", "3", "--json"]) == 0
     out = capsys.readouterr().out
     summary = json.loads(out)
+    assert_unchanged("ankf", summary)
     assert out.count("\n") == 1
     assert set(summary["results"]) == {"ekf", "ankf1", "ankf2"}
     for kind, entry in summary["results"].items():

@@ -5,10 +5,10 @@ differences."""
 import numpy as np
 import pytest
 
-from vtrack.estimation.ins import (
+from vtrack.ins.strapdown import (
     G0, GRAVITY_N, attitude_from_accel_mag, attitude_jacobian, heading_from_mag,
     heading_jacobian, tilt_from_accel, tilt_jacobian, wrap)
-from vtrack.estimation.so3 import (
+from vtrack.ins.so3 import (
     dcm_to_euler, euler_rate_matrix, euler_to_dcm, exp_so3, log_so3, rot_z, skew)
 from vtrack.sim.imu import ImuSpec
 

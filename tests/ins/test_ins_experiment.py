@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from record_golden import assert_unchanged
 from vtrack.experiments import ins, load_all
 
 
@@ -22,6 +23,7 @@ def test_registered():
 
 def test_schema_and_same_seed_same_json(short):
     a = ins.run(2, 5)
+    assert_unchanged("ins", a.summary)
     b = ins.run(2, 5)
     c = ins.run(2, 6)
     ja, jb = json.dumps(a.summary, sort_keys=True), json.dumps(b.summary, sort_keys=True)

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from vtrack.estimation.bounds import chi2_band
-from vtrack.estimation.ins import GRAVITY_N, NavState
-from vtrack.estimation.ins_filter import InsFilterConfig, _attitude_rows
-from vtrack.estimation.so3 import euler_to_dcm, exp_so3
+from vtrack.ins.strapdown import GRAVITY_N, NavState
+from vtrack.ins.error_state_filter import InsFilterConfig, _attitude_rows
+from vtrack.ins.so3 import euler_to_dcm, exp_so3
 from vtrack.experiments import ins
 from vtrack.sim.imu import ImuSpec
 

@@ -4,8 +4,8 @@ linear error model (eqs. 28-32) against the perturbed nonlinear mechanisation.""
 import numpy as np
 import pytest
 
-from vtrack.estimation.ins import attitude_error, error_dynamics, mechanize, transition
-from vtrack.estimation.so3 import exp_so3
+from vtrack.ins.strapdown import attitude_error, error_dynamics, mechanize, transition
+from vtrack.ins.so3 import exp_so3
 from vtrack.sim.imu import ideal_imu
 from vtrack.sim.ins_trajectory import car_drive, generate, uav_racetrack
 

@@ -60,7 +60,8 @@ def _print_table(name: str, summary: dict) -> None:
                        if isinstance(v, (int, float))})
         print("  " + "kind".ljust(10) + "".join(k.rjust(14) for k in keys))
         for kind, r in results.items():
-            cells = "".join((f"{r[k]:14.5g}" if k in r else " " * 14) for k in keys)
+            cells = "".join((f"{r[k]:14.5g}" if isinstance(r.get(k), (int, float)) else " " * 14)
+                            for k in keys)
             print("  " + kind.ljust(10) + cells)
 
     rows(f"{name}: {summary.get('description', '')}", summary["results"])

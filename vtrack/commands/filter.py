@@ -9,10 +9,13 @@ HELP = (
     "Run one filter of the shared estimation core over a recorded measurement log.\n"
     "CONFIG.toml has the sections [motion] (model wiener-velocity | constant-acceleration |\n"
     "unicycle, dt, q), [measurement] (model bearings | position | range | pose, sensors,\n"
-    "sigma), [filter] (kind, plus the kind's optional keys, e.g. alpha, beta, kappa) and\n"
+    "sigma), [filter] (kind: kf, ekf, iekf, ukf, ckf, iplf, srukf, crukf, ankf1, ankf2,\n"
+    "fuzzy-r, fuzzy-q, siim-ekf; plus the kind's optional keys, e.g. alpha, beta, kappa;\n"
+    "iekf: max_iterations, tolerance; iplf: rule, max_iterations, tolerance) and\n"
     "[init] (x0, P0). MEASUREMENTS.csv: header t,z0,z1,... (unicycle: then u_v,u_omega);\n"
     "an empty or nan cell is a missing measurement. ESTIMATES.csv: t, the posterior mean\n"
-    "x0..x{n-1} and the full posterior covariance P0_0..P{n-1}_{n-1}, one row per input row."
+    "x0..x{n-1} and the full posterior covariance P0_0..P{n-1}_{n-1}, one row per input row.\n"
+    "--report REPORT.json: the NIS test of the run (sum NIS / sum dof against its 95% band)."
 )
 
 
@@ -25,10 +28,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="where to write the posterior means and covariances")
     parser.add_argument("--rerun", metavar="FILE.rrd",
                         help="also save a rerun recording of the run (needs vtrack[rerun])")
+    parser.add_argument("--report", metavar="REPORT.json",
+                        help="also write the run's NIS consistency test (JSON)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Parse, filter, write (vtrack.filtering.filter_files)."""
     from vtrack.filtering import filter_files
 
-    return filter_files(args.config, args.measurements, args.out, args.rerun)
+    return filter_files(args.config, args.measurements, args.out, args.rerun, args.report)

@@ -1,31 +1,24 @@
 """Filters as objects with one small surface: predict(dt, u), update(z), x, P.
 
-KF/EKF share one step (vtrack.estimation.kalman); UKF and CKF share one sigma-point step and
-differ only in their SigmaPointRule; the square-root UKF and seed 002's cube-root variant share
-one square-root step and differ only in the root. Missing measurement cells are NaN.
+This module holds the base class, the EKF (which is the linear KF on linear models) and the
+iterated EKF; the sigma-point filters are in vtrack.estimation.sigma_filters and every kind
+is built by name through vtrack.estimation.registry. Missing measurement cells are NaN.
+
+The EKF's prediction and update are written once. Filters that adapt their noise (the
+seed-paper kinds in vtrack.adaptive) supply Q and R through two hooks,
+`process_noise(dt)` and `measurement_noise(meas)`, instead of copying the steps.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
 from vtrack.estimation.kalman import Innovation, kf_predict, kf_update
-from vtrack.estimation.linalg import (
-    DowndateError,
-    EstimationError,
-    NotPositiveDefiniteError,
-    cholesky,
-    cholupdate,
-    require_finite,
-    spd_root,
-    symmetrize,
-    tria,
-)
+from vtrack.estimation.linalg import EstimationError, cholesky, require_finite, symmetrize
 from vtrack.estimation.models import MeasurementModel, MotionModel
-from vtrack.estimation.sigma_points import SigmaPointRule, cubature, unscented
+from vtrack.estimation.options import float_option, int_option
 
 
 class GaussianFilter:
@@ -68,259 +61,144 @@ class GaussianFilter:
 class ExtendedKalmanFilter(GaussianFilter):
     """EKF (seed 000 eqs. 7-9): F at the posterior, H at the prior, Joseph-form update.
 
-    With linear models it is exactly the linear KF (kind 'kf')."""
+    With linear models it is exactly the linear KF (kind 'kf'). Subclasses that adapt the
+    noise override the hooks `process_noise` and `measurement_noise`."""
 
     kind = "ekf"
 
+    def process_noise(self, dt: float) -> np.ndarray:
+        """The Q of the next prediction (hook; the model's Q(dt) here)."""
+        return self.motion.Q(dt)
+
+    def measurement_noise(self, meas: MeasurementModel) -> np.ndarray:
+        """The R of the next update for the rows `meas` holds (hook; the model's R here)."""
+        return meas.R
+
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
+        """x- = f(x, dt, u),  P- = F P F' + Q,  F = df/dx at x  (kalman.kf_predict)."""
         F = self.motion.F(self.x, dt, u)
-        self.x, self.P = kf_predict(self.x, self.P, F, self.motion.Q(dt),
+        self.x, self.P = kf_predict(self.x, self.P, F, self.process_noise(dt),
                                     fx=self.motion.f(self.x, dt, u))
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
-        return self._kalman_update(meas, z, meas.R)
-
-    def _kalman_update(self, meas: MeasurementModel, z: np.ndarray, R: np.ndarray) -> Innovation:
+        """nu = wrap(z - h(x-)), H = dh/dx at x-, Joseph-form update (kalman.kf_update)."""
         nu = meas.residual(z, meas.h(self.x))
-        self.x, self.P, info = kf_update(self.x, self.P, nu, meas.H(self.x), R)
+        self.x, self.P, info = kf_update(self.x, self.P, nu, meas.H(self.x),
+                                         self.measurement_noise(meas))
         return info
 
 
-def weighted_mean(Y: np.ndarray, Wm: np.ndarray, ref: np.ndarray,
-                  residual: Callable[[np.ndarray, np.ndarray], np.ndarray]
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Sigma-point mean taken relative to a reference, ybar = ref + sum Wm_i r(Y_i, ref), and the
-    deviations r(Y_i, ybar). With wrapped residuals this averages angles across +-pi (SEEDS 1.4)."""
-    mean = ref + Wm @ residual(Y, ref)
-    return mean, residual(Y, mean)
+# ------------------------------------------------------------------ iterated updates
+
+Linearisation = tuple[np.ndarray, np.ndarray, np.ndarray | None]
+"""h(x) ~ y + A (x - m) about a point m, with error covariance Omega (None: zero)."""
 
 
-class SigmaPointKalmanFilter(GaussianFilter):
-    """UKF (seed 000 eqs. 10-13) or CKF (eqs. 14-24), depending on the rule.
+def iterated_update(motion: MotionModel, meas: MeasurementModel, x_prior: np.ndarray,
+                    P_prior: np.ndarray, z: np.ndarray, R: np.ndarray,
+                    linearise: Callable[[np.ndarray, np.ndarray], Linearisation],
+                    max_iterations: int, tolerance: float,
+                    cost: Callable[[np.ndarray], float] | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, Innovation, int]:
+    """The update of the prior (x-, P-) relinearised at its own result until it settles.
 
-    Additive noise: P- = sum Wc dX dX' + Q; update S = sum Wc dY dY' + R, Pxy = sum Wc dX dY',
-    K = Pxy S^-1, P = P- - K S K'."""
+    Iterate i = 1, 2, ... from (m_0, P_0) = (x-, P-): linearise h about the current iterate,
+    h(x) ~ y_i + A_i (x - m_i) with error covariance Omega_i (`linearise(m_i, P_i)`), and
+    update the PRIOR with that linear model (Joseph form, kalman.kf_update):
 
-    def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
-                 P0: np.ndarray, rule: SigmaPointRule, kind: str = "ukf") -> None:
-        super().__init__(motion, measurement, x0, P0)
-        self.rule = rule
-        self.kind = kind
+        nu_i = wrap(z - y_i) + A_i (m_i - x-)        (= z - [y_i + A_i (x- - m_i)])
+        m_{i+1}, P_{i+1} = kf_update(x-, P-, nu_i, A_i, R + Omega_i)
 
-    def predict(self, dt: float, u: np.ndarray | None = None) -> None:
-        X = self.rule.points(self.x, cholesky(self.P, "state covariance"))
-        Xp = self.motion.f(X, dt, u)
-        ref = self.motion.f(self.x, dt, u)
-        self.x, dX = weighted_mean(Xp, self.rule.Wm, ref, self.motion.residual)
-        self.P = symmetrize((dX.T * self.rule.Wc) @ dX + self.motion.Q(dt))
-
-    def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
-        X = self.rule.points(self.x, cholesky(self.P, "predicted covariance"))
-        ybar, dY = weighted_mean(meas.h(X), self.rule.Wm, meas.h(self.x), meas.residual)
-        dX = self.motion.residual(X, self.x)
-        S = symmetrize((dY.T * self.rule.Wc) @ dY + meas.R)
-        Pxy = (dX.T * self.rule.Wc) @ dY
-        L = cholesky(S, "innovation covariance S")
-        # K = Pxy S^-1 through the factor. numpy's solve, not scipy's solve_triangular: the
-        # latter can take milliseconds per tiny call under a multi-threaded OpenBLAS.
-        K = np.linalg.solve(L.T, np.linalg.solve(L, Pxy.T)).T
-        nu = meas.residual(z, ybar)
-        self.x = self.x + K @ nu
-        self.P = symmetrize(self.P - K @ S @ K.T)
-        w = np.linalg.solve(L, nu)
-        return Innovation(nu=nu, S=S, K=K, nis=np.asarray(w @ w))
-
-
-@dataclass
-class _Root:
-    """Matrix 'square root' of order p: Cholesky for p = 2, principal cube root for p = 3."""
-
-    p: int
-
-    def of(self, M: np.ndarray, what: str) -> np.ndarray:
-        if self.p == 2:
-            try:
-                return cholesky(M, what)
-            except NotPositiveDefiniteError:  # a PSD (singular) Q: any factor works for tria
-                d, U = np.linalg.eigh(symmetrize(M))
-                return U * np.sqrt(np.clip(d, 0.0, None))
-        try:
-            return spd_root(M, 1.0 / self.p)
-        except NotPositiveDefiniteError:  # a PSD (singular) Q or R, as for p = 2 above
-            d, U = np.linalg.eigh(symmetrize(M))
-            return (U * np.clip(d, 0.0, None) ** (1.0 / self.p)) @ U.T
-
-    def weight(self, w: float) -> float:
-        return float(w) ** (1.0 / self.p)
+    With a `cost` (the iterated EKF's MAP cost) the step d = m_{i+1} - m_i is halved until
+    the cost does not increase (Skoglund, Hendeby & Axehill 2015: a Gauss-Newton step can
+    overshoot), and iterating stops when no such step is found. Stop when the step taken
+    (angles wrapped) is small in the new posterior's own metric, sqrt(d' P_{i+1}^-1 d) <=
+    tolerance, or after max_iterations. The first full step is the plain EKF (or UKF/CKF)
+    update. The result's covariance and innovation are those of the last linearisation.
+    Returns (x, P, innovation, iterations done).
+    """
+    m = x_prior
+    for i in range(1, max_iterations + 1):
+        A, y, Omega = linearise(m, P_prior if i == 1 else P)
+        nu = meas.residual(z, y) + A @ motion.residual(m, x_prior)
+        x, P, info = kf_update(x_prior, P_prior, nu, A, R if Omega is None else R + Omega)
+        d = motion.residual(x, m)
+        if cost is not None:
+            x, d = _halve_until_no_increase(cost, m, x, d)
+            if x is m:
+                break
+        m = x
+        if i > 1 and float(d @ np.linalg.solve(P, d)) <= tolerance**2:
+            break
+    return m, P, info, i
 
 
-class SquareRootUKF(GaussianFilter):
-    """Square-root UKF (van der Merwe & Wan 2001; SEEDS 1.5): the factor S (P = S S') is
-    propagated by QR ('tria') and rank-1 Cholesky up/down-dates.
+def _halve_until_no_increase(cost: Callable[[np.ndarray], float], m: np.ndarray,
+                             x: np.ndarray, d: np.ndarray, halvings: int = 10
+                             ) -> tuple[np.ndarray, np.ndarray]:
+    """The full step (x, d) if cost(x) <= cost(m), else m + d/2^j for the first j <= halvings
+    that does not increase the cost; (m, 0) if none does."""
+    c0 = cost(m)
+    if cost(x) <= c0:
+        return x, d
+    for _ in range(halvings):
+        d = 0.5 * d
+        if cost(m + d) <= c0:
+            return m + d, d
+    return m, np.zeros_like(d)
 
-    root=3 gives seed 002's "cubic root UKF" (SEEDS 4.5): cube roots replace the square roots
-    of P0, Q, R, the spread and the QR weights. That variant is the PAPER'S EXPERIMENTAL
-    VARIANT and is mathematically unsound (its factors are mutually inconsistent); it is here
-    to reproduce the paper, not as an improved filter.
 
-    A downdate that fails (very negative Wc0) falls back to the full-covariance step for that
-    factor and is counted in `fallbacks`. If even that matrix is not positive definite, the
-    filter raises NotPositiveDefiniteError, unless `repair` is set: then the matrix is
-    repaired by clipping its eigenvalues at 1e-10 x the largest (SEEDS 1.3) and the event is
-    counted in `repairs` (seed 002's cube-root variant needs it to run at all).
+MAX_ITERATIONS = 30     # defaults of the iterated kinds (iekf, iplf); see docs/EXPERIMENTS.md
+TOLERANCE = 1e-4
+
+
+def iteration_options(max_iterations: object, tolerance: object) -> tuple[int, float]:
+    """Validated (max_iterations: integer >= 1, tolerance: number > 0) of an iterated kind."""
+    return (int_option("max_iterations", max_iterations, 1),
+            float_option("tolerance", tolerance, 0.0))
+
+
+class IteratedExtendedKalmanFilter(ExtendedKalmanFilter):
+    """Iterated EKF (Bell & Cathey 1993: the Gauss-Newton maximum a posteriori update).
+
+    The EKF's prediction; the update relinearises h at its own result (iterated_update with
+    A_i = H(m_i), y_i = h(m_i), Omega_i = 0):
+
+        m_{i+1} = x- + K_i (z - h(m_i) - H_i (x- - m_i)),  K_i = P- H_i' (H_i P- H_i' + R)^-1
+
+    a step that would increase the MAP cost (x - x-)' P-^-1 (x - x-) + r' R^-1 r,
+    r = wrap(z - h(x)), being halved (line search), and P = (I - K H) P- (I - K H)' + K R K'
+    with H = H(m) at the last linearisation point. On a linear measurement the second
+    iteration repeats the first (the KF). `iterations` holds the count of the last update.
+
+    Options: max_iterations (default 30), tolerance (default 1e-4: the last step below
+    1e-4 posterior standard deviations).
     """
 
-    repair = False
+    kind = "iekf"
 
     def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
-                 P0: np.ndarray, rule: SigmaPointRule, root: int = 2, kind: str = "srukf") -> None:
-        if not rule.center:
-            raise ValueError("the square-root UKF needs an unscented rule")
-        self.rule = rule
-        self.root = _Root(root)
-        self.kind = kind
-        self.fallbacks = 0
-        self.repairs = 0
-        super().__init__(motion, measurement, x0, P0)  # sets S through the P setter
-
-    @property
-    def P(self) -> np.ndarray:  # type: ignore[override]
-        return self.S @ self.S.T
-
-    @P.setter
-    def P(self, value: np.ndarray) -> None:
-        self.S = self.root.of(value, "covariance")
-
-    def _points(self, x: np.ndarray) -> np.ndarray:
-        return self.rule.points(x, self.S, spread=self.rule.c ** (1.0 / self.root.p))
-
-    def _factor(self, dev: np.ndarray, noise_root: np.ndarray) -> np.ndarray:
-        """tria([w1 * dev_1..2n, noise root]) then the rank-1 term of the centre point (Wc0)."""
-        Wc = self.rule.Wc
-        S = tria(np.hstack([self.root.weight(Wc[1]) * dev[1:].T, noise_root]))
-        if Wc[0] == 0.0:
-            return S
-        v = np.sqrt(abs(Wc[0])) * dev[0]
-        try:
-            return cholupdate(S, v, np.sign(Wc[0]))
-        except DowndateError:
-            self.fallbacks += 1
-            return self._full_factor(S @ S.T + np.sign(Wc[0]) * np.outer(v, v),
-                                     "covariance after the Wc0 downdate")
-
-    def _full_factor(self, M: np.ndarray, what: str) -> np.ndarray:
-        """Cholesky factor of the full-covariance fallback, or its repair (see class doc)."""
-        M = symmetrize(M)
-        try:
-            return cholesky(M, what)
-        except NotPositiveDefiniteError:
-            if not self.repair or not np.all(np.isfinite(M)):
-                raise
-            self.repairs += 1
-            d, U = np.linalg.eigh(M)
-            floor = 1e-10 * max(float(d.max()), np.finfo(float).tiny)
-            return tria(U * np.sqrt(np.maximum(d, floor)))
-
-    def predict(self, dt: float, u: np.ndarray | None = None) -> None:
-        Xp = self.motion.f(self._points(self.x), dt, u)
-        self.x, dX = weighted_mean(Xp, self.rule.Wm, self.motion.f(self.x, dt, u),
-                                   self.motion.residual)
-        self.S = self._factor(dX, self.root.of(self.motion.Q(dt), "process noise Q"))
+                 P0: np.ndarray, max_iterations: int = MAX_ITERATIONS,
+                 tolerance: float = TOLERANCE) -> None:
+        super().__init__(motion, measurement, x0, P0)
+        self.max_iterations, self.tolerance = iteration_options(max_iterations, tolerance)
+        self.iterations = 0
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
-        X = self._points(self.x)
-        ybar, dY = weighted_mean(meas.h(X), self.rule.Wm, meas.h(self.x), meas.residual)
-        Sy = self._factor(dY, self.root.of(meas.R, "measurement noise R"))
-        dX = self.motion.residual(X, self.x)
-        Pxy = (dX.T * self.rule.Wc) @ dY
-        # K = Pxy (Sy Sy')^-1 by two triangular solves (SEEDS 1.5).
-        K = np.linalg.solve(Sy.T, np.linalg.solve(Sy, Pxy.T)).T
-        nu = meas.residual(z, ybar)
-        self.x = self.x + K @ nu
-        U = K @ Sy
-        S = self.S
-        try:
-            for j in range(U.shape[1]):
-                S = cholupdate(S, U[:, j], -1.0)
-        except DowndateError:
-            self.fallbacks += 1
-            S = self._full_factor(self.S @ self.S.T - U @ U.T, "updated covariance")
-        self.S = S
-        w = np.linalg.solve(Sy, nu)
-        return Innovation(nu=nu, S=Sy @ Sy.T, K=K, nis=np.asarray(w @ w))
+        R = self.measurement_noise(meas)
+        x_prior = self.x
+        Lp, Lr = cholesky(self.P, "predicted covariance"), cholesky(R, "measurement noise R")
 
+        def linearise(m: np.ndarray, P: np.ndarray) -> Linearisation:
+            return meas.H(m), meas.h(m), None
 
-# ---------------------------------------------------------------------------- registry
+        def cost(m: np.ndarray) -> float:
+            """MAP cost, up to a factor 1/2: |x - x-|^2_{P-} + |wrap(z - h(x))|^2_R."""
+            a = np.linalg.solve(Lp, self.motion.residual(m, x_prior))
+            b = np.linalg.solve(Lr, meas.residual(z, meas.h(m)))
+            return float(a @ a + b @ b)
 
-FilterFactory = Callable[..., GaussianFilter]
-FILTER_KINDS: dict[str, tuple[FilterFactory, tuple[str, ...]]] = {}
-
-
-def register(kind: str, options: tuple[str, ...] = ()) -> Callable[[FilterFactory], FilterFactory]:
-    """Register a filter factory f(motion, measurement, x0, P0, **options) under `kind`."""
-
-    def deco(factory: FilterFactory) -> FilterFactory:
-        FILTER_KINDS[kind] = (factory, options)
-        return factory
-
-    return deco
-
-
-def make_filter(kind: str, motion: MotionModel, measurement: MeasurementModel,
-                x0: np.ndarray, P0: np.ndarray, **options: float) -> GaussianFilter:
-    """Build a filter by kind name; unknown kinds and options raise ValueError."""
-    import vtrack.estimation.adaptive  # noqa: F401  (registers ankf1, ankf2)
-    import vtrack.estimation.fuzzy  # noqa: F401  (registers fuzzy-r, fuzzy-q, siim-ekf)
-
-    if kind not in FILTER_KINDS:
-        raise ValueError(f"unknown filter kind {kind!r} (known: {', '.join(sorted(FILTER_KINDS))})")
-    factory, allowed = FILTER_KINDS[kind]
-    unknown = sorted(set(options) - set(allowed))
-    if unknown:
-        raise ValueError(f"filter kind {kind!r} does not take option(s) {', '.join(unknown)}"
-                         + (f" (it takes: {', '.join(allowed)})" if allowed else ""))
-    return factory(motion, measurement, x0, P0, **options)
-
-
-_UT = ("alpha", "beta", "kappa")
-
-
-@register("kf")
-def _kf(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray
-        ) -> GaussianFilter:
-    if not (motion.linear and meas.linear):
-        raise ValueError("filter kind 'kf' needs a linear motion and measurement model "
-                         "(use ekf, ukf or ckf)")
-    f = ExtendedKalmanFilter(motion, meas, x0, P0)
-    f.kind = "kf"
-    return f
-
-
-@register("ekf")
-def _ekf(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray
-         ) -> GaussianFilter:
-    return ExtendedKalmanFilter(motion, meas, x0, P0)
-
-
-@register("ukf", _UT)
-def _ukf(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray,
-         **ut: float) -> GaussianFilter:
-    return SigmaPointKalmanFilter(motion, meas, x0, P0, unscented(motion.n, **ut), "ukf")
-
-
-@register("ckf")
-def _ckf(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray
-         ) -> GaussianFilter:
-    return SigmaPointKalmanFilter(motion, meas, x0, P0, cubature(motion.n), "ckf")
-
-
-@register("srukf", _UT)
-def _srukf(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray,
-           **ut: float) -> GaussianFilter:
-    return SquareRootUKF(motion, meas, x0, P0, unscented(motion.n, **ut), 2, "srukf")
-
-
-@register("crukf", _UT)
-def _crukf(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray,
-           **ut: float) -> GaussianFilter:
-    return SquareRootUKF(motion, meas, x0, P0, unscented(motion.n, **ut), 3, "crukf")
+        self.x, self.P, info, self.iterations = iterated_update(
+            self.motion, meas, x_prior, self.P, z, R, linearise, self.max_iterations,
+            self.tolerance, cost)
+        return info

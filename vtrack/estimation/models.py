@@ -170,6 +170,11 @@ class MeasurementModel:
         """a - b with angular components wrapped to (-pi, pi]."""
         return _residual(a, b, self.angles)
 
+    def row_indices(self) -> np.ndarray:
+        """Indices of the rows of the full measurement vector this model holds (all here; the
+        present rows for a model restricted by `subset`)."""
+        return np.arange(self.m)
+
     def subset(self, rows: np.ndarray) -> "MeasurementModel":
         """The model restricted to the measurement rows present (missing cells dropped)."""
         rows = np.asarray(rows)
@@ -293,3 +298,6 @@ class _Subset(MeasurementModel):
 
     def H(self, x: np.ndarray) -> np.ndarray:
         return self.base.H(x)[self.rows]
+
+    def row_indices(self) -> np.ndarray:
+        return np.asarray(self.rows)

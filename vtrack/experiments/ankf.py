@@ -11,7 +11,7 @@ The seed's scenario-3 measurement equation (azimuth/elevation of a 3-D target) c
 - r-underestimated: the filters assume sigma_w = 0.01 (the case where fading can hurt);
 - 3a-ankf1-adapt-q / 3a-ankf1-adapt-rq: ANKF1 estimating Q only / R and Q in case 3a.
 
-The adaptive filters are the reconstruction of SEEDS 2.4 (vtrack.estimation.adaptive) with
+The adaptive filters are the reconstruction of SEEDS 2.4 (vtrack.adaptive.ankf) with
 its defaults: window N = 20, R floor 0.01 diag(R_nom), lambda_max = 1.5, ratio clip
 [0.01, 100].
 """
@@ -22,7 +22,7 @@ import numpy as np
 
 from vtrack.estimation.bounds import chi2_band
 from vtrack.experiments import ExperimentResult, register
-from vtrack.experiments import _bot as bot
+from vtrack.experiments import _bearings_scenario as scn
 
 FILTERS: dict[str, dict[str, object]] = {"ekf": {}, "ankf1": {}, "ankf2": {}}
 
@@ -32,27 +32,27 @@ PAPER_RMSE = {"ekf": 0.5652, "ankf1": 0.5112, "ankf2": 0.2730}
 STEP_AT = 250
 
 
-def scenarios() -> dict[str, tuple[bot.Scenario, dict[str, dict[str, object]], str]]:
+def scenarios() -> dict[str, tuple[scn.Scenario, dict[str, dict[str, object]], str]]:
     """Case name -> (scenario, filters {kind: options}, description). '3a' is the headline."""
-    two = bot.SENSORS_DEDUCED
-    step = np.where(np.arange(bot.STEPS) < STEP_AT, 0.05, 0.15)
+    two = scn.SENSORS_DEDUCED
+    step = np.where(np.arange(scn.STEPS) < STEP_AT, 0.05, 0.15)
     return {
-        "3a": (bot.Scenario(two, q_filter=0.01), FILTERS,
+        "3a": (scn.Scenario(two, q_filter=0.01), FILTERS,
                "case 3a (paper table 4): filters assume sigma_v^2 = 0.01, truth 0.1 (toolbox "
                "turning path, deduced two sensors)"),
-        "3b-r-overestimated": (bot.Scenario(two, sigma_filter=0.5), FILTERS,
+        "3b-r-overestimated": (scn.Scenario(two, sigma_filter=0.5), FILTERS,
                                "case 3b: filters assume sigma_w = 0.5 rad, truth 0.05 "
                                "(R 100x too large); sigma_v^2 = 0.1 correct"),
-        "3b-r-step": (bot.Scenario(two, sigma_true=step), FILTERS,
+        "3b-r-step": (scn.Scenario(two, sigma_true=step), FILTERS,
                       f"case 3b: the true sigma_w steps 0.05 -> 0.15 rad at step {STEP_AT}; "
                       "filters assume 0.05"),
-        "r-underestimated": (bot.Scenario(two, sigma_filter=0.01), FILTERS,
+        "r-underestimated": (scn.Scenario(two, sigma_filter=0.01), FILTERS,
                              "filters assume sigma_w = 0.01 rad, truth 0.05 (R 25x too "
                              "small); sigma_v^2 = 0.1 correct"),
-        "3a-ankf1-adapt-q": (bot.Scenario(two, q_filter=0.01),
+        "3a-ankf1-adapt-q": (scn.Scenario(two, q_filter=0.01),
                              {"ekf": {}, "ankf1": {"adapt_r": False, "adapt_q": True}},
                              "case 3a with ANKF1 estimating Q only (Q_hat = K C_hat K')"),
-        "3a-ankf1-adapt-rq": (bot.Scenario(two, q_filter=0.01),
+        "3a-ankf1-adapt-rq": (scn.Scenario(two, q_filter=0.01),
                               {"ekf": {}, "ankf1": {"adapt_r": True, "adapt_q": True}},
                               "case 3a with ANKF1 estimating R and Q"),
     }
@@ -70,19 +70,19 @@ PCRLB_NOTE = (
           "model", 100)
 def ankf(runs: int, seed: int) -> ExperimentResult:
     """Case 3a under `results`, the others under `cases` (see the module docstring)."""
-    seeds = bot.run_seeds(seed, runs)
+    seeds = scn.run_seeds(seed, runs)
     bodies = {}
     example = None
     for name, (scenario, filters, description) in scenarios().items():
-        case = bot.simulate(scenario, seeds, filters)
+        case = scn.simulate(scenario, seeds, filters)
         bodies[name] = {
             "description": description,
             "parameters": scenario.parameters(),
-            "results": bot.case_results(case, PAPER_RMSE if name == "3a" else None),
-            "comparisons": bot.comparisons(case),
+            "results": scn.case_results(case, PAPER_RMSE if name == "3a" else None),
+            "comparisons": scn.comparisons(case),
         }
         if name == "3a":
-            example = bot.example_run(case)
+            example = scn.example_run(case)
     summary: dict[str, object] = {
         "experiment": "ankf",
         "seed_paper": "000 (Khadour, Al Saba & Saleh 2019), scenario 3",
@@ -111,21 +111,21 @@ def ankf(runs: int, seed: int) -> ExperimentResult:
     }
     summary.update(bodies.pop("3a"))
     summary["cases"] = bodies
-    return ExperimentResult(bot.json_clean(summary), example)
+    return ExperimentResult(scn.json_clean(summary), example)
 
 
 def window_sweep(runs: int, seed: int, windows: tuple[int, ...] = (10, 20, 40)
                  ) -> dict[str, dict[int, dict[str, float]]]:
     """RMSE of ANKF1 and ANKF2 for several window lengths N in cases 3a and 3b-r-overestimated
     (SEEDS 2.4 asks for N = 10 and 40 beside the default 20). Not part of the JSON."""
-    seeds = bot.run_seeds(seed, runs)
+    seeds = scn.run_seeds(seed, runs)
     table: dict[str, dict[int, dict[str, float]]] = {}
     for name in ("3a", "3b-r-overestimated"):
         scenario = scenarios()[name][0]
         table[name] = {}
         for n in windows:
-            case = bot.simulate(scenario, seeds, {"ankf1": {"window": n},
+            case = scn.simulate(scenario, seeds, {"ankf1": {"window": n},
                                                   "ankf2": {"window": n}})
-            res = bot.case_results(case)
+            res = scn.case_results(case)
             table[name][n] = {k: float(v["rmse"]) for k, v in res.items()}
     return table

@@ -22,12 +22,22 @@ from typing import Any
 
 import numpy as np
 
-from vtrack.estimation.bounds import chi2_band, nees
-from vtrack.estimation.filters import GaussianFilter, make_filter
+from vtrack.estimation.bounds import chi2_band, nees, paired_difference
+from vtrack.estimation.filters import GaussianFilter
 from vtrack.estimation.models import LinearMeasurement, MotionModel
+from vtrack.estimation.montecarlo import (
+    MonteCarloRun,
+    monte_carlo,
+    nees_series,
+    nees_summary,
+    nis_summary,
+    rmse,
+    run_generators,
+    run_rmse,
+    squared_error,
+)
 from vtrack.experiments import ExampleRun, ExperimentResult, register
-from vtrack.estimation.bounds import paired_difference
-from vtrack.experiments._mcutil import nees_summary, run_generators
+from vtrack.filter_kinds import make_filter
 
 KINDS = ("kf", "fuzzy-r", "fuzzy-q")
 T = 0.1
@@ -137,131 +147,108 @@ def _build(kind: str, case: FuzzyCase, xhat0: np.ndarray) -> GaussianFilter:
     return make_filter(kind, motion, position_sensor(case.r_filter), xhat0, P0, **opts)
 
 
-def run_filter(f: GaussianFilter, u: np.ndarray, z: np.ndarray, u_known: bool,
-               r_schedule: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Run over all steps; series include k = 0 (the prior). `r_schedule` (STEPS,) swaps the
-    measurement model's R each step (the model-matched reference for a step change)."""
-    n = len(z)
-    xs = np.empty((n + 1, 6))
-    Ps = np.empty((n + 1, 6, 6))
-    nis = np.empty(n)
-    rdiag = np.empty((n + 1, 3))
-    qscale = np.empty((n + 1, 3))
-    xs[0], Ps[0] = f.x, f.P
-    rdiag[0] = np.diag(getattr(f, "R", f.measurement.R))
-    qscale[0] = getattr(f, "q_scale", np.ones(3))
-    for k in range(n):
-        if r_schedule is not None and f.measurement.R[0, 0] != r_schedule[k]:
-            f.measurement = position_sensor(float(r_schedule[k]))
-        f.predict(T, u[k] if u_known else None)
-        info = f.update(z[k])
-        xs[k + 1], Ps[k + 1] = f.x, f.P
-        nis[k] = float(info.nis)
-        rdiag[k + 1] = np.diag(getattr(f, "R", f.measurement.R))
-        qscale[k + 1] = getattr(f, "q_scale", np.ones(3))
-    return {"x": xs, "P": Ps, "nis": nis, "R": rdiag, "q_scale": qscale}
+# diagonal of the R the filter uses and the fuzzy-q scale, after each step
+RECORD = {"R": lambda f: np.diag(getattr(f, "R", f.measurement.R)),
+          "q_scale": lambda f: getattr(f, "q_scale", np.ones(3))}
 
 
-class _Acc:
-    """Per-kind accumulators over the runs."""
+def run_filters(case: FuzzyCase, u: np.ndarray, z: np.ndarray, xhat0: np.ndarray
+                ) -> dict[str, MonteCarloRun]:
+    """Every kind of KINDS, and the model-matched reference KF 'kf-matched' (true Q, true R
+    of each step through a before-step hook, u known), over the runs' inputs u (R, STEPS, 3)
+    and measurements z (R, STEPS, 3) from the priors xhat0 (R, 6) (the harness)."""
+    U = u if case.u_known else None
+    out = {kind: monte_carlo(kind, lambda r, kind=kind: _build(kind, case, xhat0[r]), z, T, U,
+                             RECORD) for kind in KINDS}
+    schedule = np.array([case.r_at((k + 1) * T) for k in range(STEPS)])
 
-    def __init__(self) -> None:
-        self.sq_pos: list[np.ndarray] = []
-        self.sq_axes: list[np.ndarray] = []
-        self.sq_vel: list[np.ndarray] = []
-        self.nis: list[np.ndarray] = []
-        self.nees: list[np.ndarray] = []
-        self.run_rmse: list[float] = []
-        self.final_R: list[np.ndarray] = []
-        self.final_q: list[np.ndarray] = []
+    def true_r(f: GaussianFilter, k: int) -> None:
+        if f.measurement.R[0, 0] != schedule[k]:
+            f.measurement = position_sensor(float(schedule[k]))
 
-    def add(self, truth: np.ndarray, out: dict[str, np.ndarray]) -> None:
-        e = truth[1:] - out["x"][1:]
-        self.sq_axes.append(e[:, :3] ** 2)
-        self.sq_pos.append((e[:, :3] ** 2).sum(axis=1))
-        self.sq_vel.append((e[:, 3:] ** 2).sum(axis=1))
-        self.run_rmse.append(float(np.sqrt(self.sq_pos[-1].mean())))
-        self.nis.append(out["nis"])
-        sol = np.linalg.solve(out["P"][1:], e[..., None])[..., 0]
-        self.nees.append(np.einsum("ki,ki->k", e, sol))
-        self.final_R.append(out["R"][-1])
-        self.final_q.append(out["q_scale"][-1])
+    out["kf-matched"] = monte_carlo(
+        "kf", lambda r: make_filter("kf", ConstantVelocityInput3D(Q_TRUE),
+                                    position_sensor(schedule[0]), xhat0[r], P0),
+        z, T, u, RECORD, before_step=true_r)
+    return out
 
-    def summary(self, kind: str) -> dict[str, Any]:
-        sq_axes = np.array(self.sq_axes)
-        sq_pos = np.array(self.sq_pos)
-        runs = len(sq_pos)
-        frames = [k for k in (int(round(t / T)) - 1 for t in np.arange(5.0, 40.1, 5.0))
-                  if k < sq_pos.shape[1]]
-        nis = np.array(self.nis)
-        lo, hi = chi2_band(3, nis.shape[1])
-        per_run_nis = nis.mean(axis=1)
-        out: dict[str, Any] = {
-            "rmse": float(np.sqrt(sq_pos.mean())),
-            "rmse_x": float(np.sqrt(sq_axes[..., 0].mean())),
-            "rmse_y": float(np.sqrt(sq_axes[..., 1].mean())),
-            "rmse_z": float(np.sqrt(sq_axes[..., 2].mean())),
-            "rmse_velocity": float(np.sqrt(np.array(self.sq_vel).mean())),
-            "rmse_median_run": float(np.median(self.run_rmse)),
-            "rmse_at_5s_frames": [float(np.sqrt(sq_pos[:, k].mean())) for k in frames],
-            "nis": float(nis.mean()),
-            "nis_run_band_lo": lo,
-            "nis_run_band_hi": hi,
-            "nis_runs_in_band": float(np.mean((per_run_nis >= lo) & (per_run_nis <= hi))),
-            "runs": runs,
-        }
-        out.update(nees_summary(np.array(self.nees), 6))
-        if kind == "fuzzy-r":
-            out["R_final_mean"] = float(np.mean(self.final_R))
-        if kind == "fuzzy-q":
-            out["Q_scale_final_geomean"] = float(np.exp(np.mean(np.log(self.final_q))))
-        return out
+
+def summary(kind: str, run: MonteCarloRun, truth: np.ndarray) -> dict[str, Any]:
+    """The JSON entry of one filter: position RMSE (3-D, per axis, at the paper's 5-s
+    frames), velocity RMSE, NIS (3 dof) and NEES (6 dof) statistics, and the final adapted R
+    (fuzzy-r) or Q scale (fuzzy-q). truth (R, STEPS+1, 6) includes the start."""
+    e = truth[:, 1:] - run.x
+    sq_axes = e[..., :3] ** 2
+    sq_pos = squared_error(run.x, truth[:, 1:], slice(0, 3))
+    frames = [k for k in (int(round(t / T)) - 1 for t in np.arange(5.0, 40.1, 5.0))
+              if k < sq_pos.shape[1]]
+    out: dict[str, Any] = {
+        "rmse": rmse(sq_pos),
+        "rmse_x": rmse(sq_axes[..., 0]),
+        "rmse_y": rmse(sq_axes[..., 1]),
+        "rmse_z": rmse(sq_axes[..., 2]),
+        "rmse_velocity": rmse(squared_error(run.x, truth[:, 1:], slice(3, 6))),
+        "rmse_median_run": float(np.median(run_rmse(sq_pos))),
+        "rmse_at_5s_frames": [float(np.sqrt(sq_pos[:, k].mean())) for k in frames],
+        "runs": len(sq_pos),
+    }
+    out.update(nis_summary(run.nis, 3))
+    out.update(nees_summary(nees_series(run, truth[:, 1:]), 6))
+    if kind == "fuzzy-r":
+        out["R_final_mean"] = float(np.mean(run.series["R"][:, -1]))
+    if kind == "fuzzy-q":
+        out["Q_scale_final_geomean"] = float(np.exp(np.mean(np.log(run.series["q_scale"][:, -1]))))
+    return out
 
 
 def run_case(case: FuzzyCase, runs: int, seed: int, keep_example: bool = False
              ) -> tuple[dict[str, Any], ExampleRun | None]:
-    acc = {k: _Acc() for k in KINDS}
-    ref = _Acc()
-    example = None
-    for r, (truth_rng, filt_rng) in enumerate(run_generators(seed, runs)):
-        truth, u, z = simulate(case, truth_rng)
-        xhat0 = truth[0] + filt_rng.multivariate_normal(np.zeros(6), P0)
-        outs = {}
-        for kind in KINDS:
-            outs[kind] = run_filter(_build(kind, case, xhat0), u, z, case.u_known)
-            acc[kind].add(truth, outs[kind])
-        schedule = np.array([case.r_at((k + 1) * T) for k in range(STEPS)])
-        matched = make_filter("kf", ConstantVelocityInput3D(Q_TRUE),
-                              position_sensor(schedule[0]), xhat0, P0)
-        ref.add(truth, run_filter(matched, u, z, True, schedule))
-        if keep_example and r == 0:
-            example = ExampleRun(
-                times=np.arange(STEPS + 1) * T, truth=truth,
-                estimates={k: o["x"] for k, o in outs.items()},
-                covariances={k: o["P"] for k, o in outs.items()},
-                nees={k: nees(truth - o["x"], o["P"]) for k, o in outs.items()},
-                measurements=np.vstack([np.full((1, 3), np.nan), z]),
-                extra_series={
-                    "fuzzy-r:R_diag": outs["fuzzy-r"]["R"],
-                    "fuzzy-q:Q_scale": outs["fuzzy-q"]["q_scale"],
-                })
-            if case.r_after is not None:
-                example.extra_series["R_true"] = np.concatenate([[case.r_at(0.0)], schedule])
-    if example is not None:  # Monte Carlo per-step curves for the plot (t = 0 left blank)
-        for k in KINDS:
-            example.extra_series[f"rmse/{k}"] = np.concatenate(
-                [[np.nan], np.sqrt(np.mean(acc[k].sq_pos, axis=0))])
-            example.extra_series[f"nees/{k}"] = np.concatenate(
-                [[np.nan], np.mean(acc[k].nees, axis=0)])
-    results = {k: acc[k].summary(k) for k in KINDS}
+    """Monte Carlo of one case: every kind and the reference on the same runs (paired)."""
+    sims, xhat0 = [], []
+    for truth_rng, filt_rng in run_generators(seed, runs):
+        sims.append(simulate(case, truth_rng))
+        xhat0.append(sims[-1][0][0] + filt_rng.multivariate_normal(np.zeros(6), P0))
+    truth, u, z = (np.array([s[i] for s in sims]) for i in range(3))
+    filtered = run_filters(case, u, z, np.array(xhat0))
+    matched = filtered.pop("kf-matched")
+    results = {k: summary(k, filtered[k], truth) for k in KINDS}
+    sq = {k: squared_error(r.x, truth[:, 1:], slice(0, 3)) for k, r in filtered.items()}
+    ref = run_rmse(squared_error(matched.x, truth[:, 1:], slice(0, 3)))
     for k in KINDS:
         if k != "kf":
-            results[k]["rmse_minus_kf"] = paired_difference(acc[k].run_rmse, acc["kf"].run_rmse)
-    reference = {"kf-matched": ref.summary("kf")}
+            results[k]["rmse_minus_kf"] = paired_difference(run_rmse(sq[k]), run_rmse(sq["kf"]))
     for k in KINDS:
-        results[k]["rmse_minus_matched"] = paired_difference(acc[k].run_rmse, ref.run_rmse)
+        results[k]["rmse_minus_matched"] = paired_difference(run_rmse(sq[k]), ref)
+    example = _example(case, truth, z, filtered, sq) if keep_example else None
     return {"description": case.description, "config": case.describe(), "results": results,
-            "reference": reference}, example
+            "reference": {"kf-matched": summary("kf", matched, truth)}}, example
+
+
+def _example(case: FuzzyCase, truth: np.ndarray, z: np.ndarray,
+             filtered: dict[str, MonteCarloRun], sq: dict[str, np.ndarray]) -> ExampleRun:
+    """Run 0's series with the prior at t = 0, and the Monte Carlo RMSE and NEES curves."""
+    traj = {k: run.with_prior(0) for k, run in filtered.items()}
+    prior_r = np.full((1, 3), case.r_filter)
+    example = ExampleRun(
+        times=np.arange(STEPS + 1) * T, truth=truth[0],
+        estimates={k: x for k, (x, _) in traj.items()},
+        covariances={k: P for k, (_, P) in traj.items()},
+        nees={k: nees(truth[0] - x, P) for k, (x, P) in traj.items()},
+        measurements=np.vstack([np.full((1, 3), np.nan), z[0]]),
+        extra_series={
+            "fuzzy-r:R_diag": np.vstack([prior_r, filtered["fuzzy-r"].series["R"][0]]),
+            "fuzzy-q:Q_scale": np.vstack([np.ones((1, 3)),
+                                          filtered["fuzzy-q"].series["q_scale"][0]]),
+        })
+    if case.r_after is not None:
+        example.extra_series["R_true"] = np.concatenate(
+            [[case.r_at(0.0)], [case.r_at((k + 1) * T) for k in range(STEPS)]])
+    for k in KINDS:  # Monte Carlo per-step curves for the plot (t = 0 left blank)
+        example.extra_series[f"rmse/{k}"] = np.concatenate(
+            [[np.nan], np.sqrt(np.mean(sq[k], axis=0))])
+        example.extra_series[f"nees/{k}"] = np.concatenate(
+            [[np.nan], np.mean(nees_series(filtered[k], truth[:, 1:]), axis=0)])
+    return example
 
 
 HEADLINE = FuzzyCase("E1: R mis-specified -- filters assume R = 25 I, truth R = 100 I; "

@@ -2,7 +2,8 @@
 
 Synthetic replacement of the paper's car test and UAV flight (SEEDS 3.2): a seeded
 racetrack flight at ~40 m/s, a consumer IMU at 40 Hz and a 5 Hz GPS (vtrack.sim), the
-closed-loop error-state filter of vtrack.estimation.ins_filter.  One trajectory per
+closed-loop error-state filter of vtrack.ins.error_state_filter (all runs stepped as one
+batch; the statistics are the Monte Carlo harness's).  One trajectory per
 scenario (drawn from the seed); the Monte Carlo runs differ in every sensor error and in the
 initial INS error.  `mag` and `no-mag` see the very same data (paired comparison).
 
@@ -19,13 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from vtrack.estimation.bounds import chi2_band, nees
-from vtrack.estimation.ins import NavState, attitude_error
-from vtrack.estimation.ins_filter import InsFilterConfig, run_ins_filter
-from vtrack.estimation.so3 import dcm_to_euler, exp_so3
+from vtrack.estimation.bounds import chi2_band, nees, paired_difference
+from vtrack.estimation.montecarlo import nees_summary, run_generators, run_rmse
 from vtrack.experiments import ExampleRun, ExperimentResult, register
-from vtrack.estimation.bounds import paired_difference
-from vtrack.experiments._mcutil import nees_summary, run_generators
+from vtrack.ins.error_state_filter import InsFilterConfig, run_ins_filter
+from vtrack.ins.so3 import dcm_to_euler, exp_so3
+from vtrack.ins.strapdown import NavState, attitude_error
 from vtrack.sim.imu import GpsSpec, ImuSpec, simulate_gps, simulate_imu
 from vtrack.sim.ins_trajectory import (Trajectory, car_drive, earth_rate_enu, generate,
                                        uav_racetrack)
@@ -233,7 +233,7 @@ def _sq_norm(a: np.ndarray) -> np.ndarray:
 
 def _per_run_rmse(err: np.ndarray) -> np.ndarray:
     """sqrt(mean_k |e_k|^2) per run for (runs, K, 3) errors."""
-    return np.sqrt(np.mean(_sq_norm(err), axis=1))
+    return run_rmse(_sq_norm(err))
 
 
 def metrics(s: Series, batch: Batch) -> dict[str, Any]:

@@ -25,16 +25,22 @@ from typing import Any
 
 import numpy as np
 
-from vtrack.estimation.bounds import chi2_band, nees
-from vtrack.estimation.filters import GaussianFilter, SquareRootUKF, make_filter
+from vtrack.estimation.bounds import chi2_band, nees, paired_difference
+from vtrack.estimation.filters import GaussianFilter
 from vtrack.estimation.kalman import Innovation
-from vtrack.estimation.linalg import EstimationError, wrap_angle
+from vtrack.estimation.linalg import wrap_angle
 from vtrack.estimation.models import MeasurementModel, MotionModel, pose_measurement
+from vtrack.estimation.montecarlo import monte_carlo, nees_summary, run_generators, run_sequence
+from vtrack.estimation.sigma_filters import SquareRootUKF
 from vtrack.experiments import ExampleRun, ExperimentResult, register
-from vtrack.estimation.bounds import paired_difference
-from vtrack.experiments._mcutil import nees_summary, run_generators
+from vtrack.filter_kinds import make_filter
 
 KINDS = ("ukf", "srukf", "crukf")
+# Beside the paper's kinds, in the headline and the well-posed `unicycle` case: the EKF and the
+# iterated kinds. The pose measurement is linear, so iekf's update is the EKF's and iplf's
+# (cubature rule) is the CKF's: iterating cannot help here (each update stops after 2).
+COMPARED = ("ekf", "iekf", "iplf")
+UT_KINDS = ("ukf", "srukf", "crukf")       # the kinds that take the paper's UT parameters
 
 
 def block_diag(*blocks: np.ndarray) -> np.ndarray:
@@ -157,6 +163,17 @@ class AugmentedRobotMotion(MotionModel):
         out[..., :3] = robot_step(z[..., :3], z[..., 3:6], self.cfg)
         return out
 
+    def F(self, z: np.ndarray, dt: float, u: np.ndarray | None = None) -> np.ndarray:
+        """d f / d [x, w, n]: the robot rows depend on the heading and on w (through
+        theta' = theta + dtheta + w3, and w1, w2 added); w and n are carried."""
+        th = float(z[2]) + self.cfg.dtheta + float(z[5])
+        J = np.eye(9)
+        G = np.array([[1.0, 0.0, -self.cfg.c1 * np.sin(th)],
+                      [0.0, 1.0, self.cfg.c2 * np.cos(th)], [0.0, 0.0, 1.0]])
+        J[:3, :3] = G
+        J[:3, 3:6] = G
+        return J
+
     def Q(self, dt: float) -> np.ndarray:
         return np.zeros((9, 9))
 
@@ -181,10 +198,13 @@ class AugmentedPose(MeasurementModel):
     def h(self, z: np.ndarray) -> np.ndarray:
         return np.asarray(z, dtype=float)[..., :3]
 
+    def H(self, z: np.ndarray) -> np.ndarray:
+        return np.eye(3, 9)
+
 
 class AugmentedNoiseFilter(GaussianFilter):
-    """A sigma-point filter of `kind` run on the augmented state [x, w, n] (the paper's UKF,
-    SEEDS 4.2): before each predict the inner filter is re-augmented with mean [x, 0, 0] and
+    """A filter of `kind` run on the augmented state [x, w, n] (the paper's UKF, SEEDS 4.2;
+    the EKF kinds use the augmented Jacobian, i.e. P- = Fx P Fx' + Fw W Fw'): before each predict the inner filter is re-augmented with mean [x, 0, 0] and
     covariance blockdiag(P, W, V) -- for the square-root kinds, factor blockdiag(S_x,
     root(W), root(V)), with S_x the leading block of the propagated factor, so the cube-root
     variant keeps its own factor as the paper's algorithm does. The update then uses the
@@ -251,14 +271,15 @@ def build_filter(kind: str, cfg: RobotConfig, xhat0: np.ndarray) -> GaussianFilt
     an indefinite full-covariance fallback (SquareRootUKF.repair): without it the cube-root
     variant stops at the first step at alpha = 1e-4."""
     P0 = np.diag(cfg.P0)
+    ut = cfg.ut() if kind in UT_KINDS else {}
     if cfg.noise == "augmented":
         f: GaussianFilter = AugmentedNoiseFilter(
             kind, AugmentedRobotMotion(cfg), AugmentedPose(np.diag(cfg.V)), xhat0, P0,
-            np.diag(cfg.W), np.diag(cfg.V), **cfg.ut())
+            np.diag(cfg.W), np.diag(cfg.V), **ut)
         inner = f.inner  # type: ignore[attr-defined]
     else:
         f = inner = make_filter(kind, AdditiveRobotMotion(cfg), pose_measurement(np.sqrt(cfg.V)),
-                                xhat0, P0, **cfg.ut())
+                                xhat0, P0, **ut)
     if isinstance(inner, SquareRootUKF):
         inner.repair = True
     return f
@@ -277,23 +298,25 @@ def simulate(cfg: RobotConfig, rng: np.random.Generator) -> tuple[np.ndarray, np
     return truth, z
 
 
+# the square-root kinds' counters after each step (0 for the others)
+COUNTERS = {"fallbacks": lambda f: getattr(f, "fallbacks", 0),
+            "repairs": lambda f: getattr(f, "repairs", 0)}
+
+
 def run_filter(kind: str, cfg: RobotConfig, xhat0: np.ndarray, z: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
     """Estimates (steps+1, 3) and covariances (steps+1, 3, 3), k = 0 being the prior, and
-    the square-root counters: fallbacks, repairs and the first step needing a repair (-1)."""
-    f = build_filter(kind, cfg, xhat0)
-    xs = np.empty((len(z) + 1, 3))
-    Ps = np.empty((len(z) + 1, 3, 3))
-    xs[0], Ps[0] = f.x, f.P
-    first_repair = -1
-    for k, zk in enumerate(z, start=1):
-        f.step(1.0, zk)
-        xs[k], Ps[k] = f.x, f.P
-        if first_repair < 0 and getattr(f, "repairs", 0):
-            first_repair = k
-    counts = {"fallbacks": int(getattr(f, "fallbacks", 0)),
-              "repairs": int(getattr(f, "repairs", 0)), "first_repair": first_repair}
-    return xs, Ps, counts
+    the square-root counters of one run (the harness's run_sequence)."""
+    out = run_sequence(build_filter(kind, cfg, xhat0), z, 1.0, record=COUNTERS)
+    return (np.concatenate([out.x0[None], out.x]), np.concatenate([out.P0[None], out.P]),
+            _counters(out.series))
+
+
+def _counters(series: dict[str, np.ndarray]) -> dict[str, int]:
+    """Total fallbacks and repairs, and the first step (1-based) needing a repair (-1)."""
+    repaired = np.flatnonzero(series["repairs"] > 0)
+    return {"fallbacks": int(series["fallbacks"][-1]), "repairs": int(series["repairs"][-1]),
+            "first_repair": int(repaired[0]) + 1 if len(repaired) else -1}
 
 
 def _errors(truth: np.ndarray, xs: np.ndarray) -> np.ndarray:
@@ -307,26 +330,31 @@ def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KI
     """Monte Carlo of one configuration; results keyed by kind (INTERFACE.md schema).
 
     All kinds see the same truth, measurements and x0-hat in each run (paired design)."""
+    truths, zs, xhat0s = [], [], []
+    for truth_rng, filt_rng in run_generators(seed, runs):
+        truth, z = simulate(cfg, truth_rng)
+        truths.append(truth)
+        zs.append(z)
+        xhat0s.append(filt_rng.multivariate_normal(np.array(cfg.x0), np.diag(cfg.P0))
+                      if cfg.xhat0 is None else np.array(cfg.xhat0))
     fields = ("eps_x", "eps_theta", "pi", "sq", "nees", "fallbacks", "repairs",
               "first_repair", "ok")
     per: dict[str, dict[str, list]] = {k: {f: [] for f in fields + ("failed",)} for k in kinds}
     example = None
-    for r, (truth_rng, filt_rng) in enumerate(run_generators(seed, runs)):
-        truth, z = simulate(cfg, truth_rng)
-        if cfg.xhat0 is None:
-            xhat0 = filt_rng.multivariate_normal(np.array(cfg.x0), np.diag(cfg.P0))
-        else:
-            xhat0 = np.array(cfg.xhat0)
-        ests, covs, nees_s = {}, {}, {}
-        for kind in kinds:
-            acc = per[kind]
-            try:
-                with np.errstate(all="ignore"):
-                    xs, Ps, counts = run_filter(kind, cfg, xhat0, z)
-            except EstimationError:
+    if keep_example:
+        example = ExampleRun(times=np.arange(cfg.steps + 1, dtype=float), truth=truths[0],
+                             estimates={}, covariances={}, nees={},
+                             measurements=np.vstack([np.full((1, 3), np.nan), zs[0]]))
+    for kind in kinds:
+        run = monte_carlo(kind, lambda r, kind=kind: build_filter(kind, cfg, xhat0s[r]),
+                          np.array(zs), 1.0, record=COUNTERS)
+        acc = per[kind]
+        for r in range(runs):
+            if run.failed[r]:
                 acc["failed"].append(r)
                 continue
-            e = _errors(truth, xs)
+            xs, Ps = run.with_prior(r)
+            e = _errors(truths[r], xs)
             pos = np.hypot(e[:, 0], e[:, 1])
             acc["eps_x"].append(float(pos.mean()))            # k = 0..k_f, as the paper
             acc["eps_theta"].append(float(np.abs(e[:, 2]).mean()))
@@ -338,15 +366,12 @@ def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KI
                 except np.linalg.LinAlgError:                  # a collapsed (singular) P
                     ne = np.full(len(e), np.inf)
             acc["nees"].append(ne[1:])
-            for key, value in counts.items():
+            for key, value in _counters({k: v[r] for k, v in run.series.items()}).items():
                 acc[key].append(value)
             acc["ok"].append(r)
-            ests[kind], covs[kind], nees_s[kind] = xs, Ps, ne
-        if keep_example and r == 0:
-            meas = np.vstack([np.full((1, 3), np.nan), z])
-            example = ExampleRun(times=np.arange(cfg.steps + 1, dtype=float), truth=truth,
-                                 estimates=ests, covariances=covs, nees=nees_s,
-                                 measurements=meas)
+            if example is not None and r == 0:
+                example.estimates[kind], example.covariances[kind] = xs, Ps
+                example.nees[kind] = ne
     ref = per["ukf"]["eps_x"] if "ukf" in kinds and per["ukf"]["eps_x"] else None
     if example is not None:  # Monte Carlo per-step curves for the plot (k = 0 left blank)
         for kind in kinds:
@@ -357,8 +382,9 @@ def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KI
                 example.extra_series[f"rmse/{kind}"] = np.concatenate([[np.nan], rm])
                 example.extra_series[f"nees/{kind}"] = np.concatenate([[np.nan], ne])
     results: dict[str, Any] = {}
+    bound = pcrlb_position(np.array(truths), cfg)
     for kind in kinds:
-        results[kind] = _summarise(per[kind], cfg.steps, ref)
+        results[kind] = _summarise(per[kind], cfg.steps, ref, bound)
     # paired per-run differences against the UKF (runs where both ran)
     if ref is not None:
         for kind in kinds:
@@ -373,7 +399,40 @@ def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KI
     return results, example
 
 
-def _summarise(acc: dict[str, list], steps: int, ref: list[float] | None) -> dict[str, Any]:
+def pcrlb_position(truth: np.ndarray, cfg: RobotConfig) -> np.ndarray:
+    """PCRLB of the position, [J_k^-1]_xx + [J_k^-1]_yy for k = 1..steps (SEEDS 7.2), along
+    the true trajectories truth (runs, steps + 1, 3) (Tichavsky et al. 1998).
+
+    The truth x' = step(x, w) (noise inside cos/sin) is invertible in w:
+    w = g(x, x') with dg/dx = -I and dg/dx' = G(theta') = [[1, 0, c1 sin theta'],
+    [0, 1, -c2 cos theta'], [0, 0, 1]] (det 1), so with W, V diagonal
+
+        D11 = W^-1,  D12 = -W^-1 E[G],  D22 = E[G' W^-1 G] + V^-1   (pose: H = I)
+        J_{k+1} = D22 - D12' (J_k + D11)^-1 D12,   J_0 = P0^-1
+
+    (the second-derivative terms vanish in expectation: w1, w2 are independent of theta').
+    Expectations are averages over the runs' true headings theta_{k+1}. Strict when x-hat0 is
+    drawn from N(x0, P0); with the paper's fixed x-hat0 a model-based reference."""
+    Winv, Vinv = np.diag(1.0 / np.array(cfg.W)), np.diag(1.0 / np.array(cfg.V))
+    th = truth[:, 1:, 2]
+    G = np.zeros(th.shape + (3, 3))
+    G[..., 0, 0] = G[..., 1, 1] = G[..., 2, 2] = 1.0
+    G[..., 0, 2] = cfg.c1 * np.sin(th)
+    G[..., 1, 2] = -cfg.c2 * np.cos(th)
+    EG = G.mean(axis=0)
+    EGWG = np.einsum("rkji,jl,rklm->kim", G, Winv, G) / len(truth)
+    J = np.linalg.inv(np.diag(cfg.P0))
+    out = np.empty(th.shape[1])
+    for k in range(th.shape[1]):
+        D12 = -Winv @ EG[k]
+        J = EGWG[k] + Vinv - D12.T @ np.linalg.solve(J + Winv, D12)
+        B = np.linalg.inv(J)
+        out[k] = B[0, 0] + B[1, 1]
+    return out
+
+
+def _summarise(acc: dict[str, list], steps: int, ref: list[float] | None,
+               bound: np.ndarray | None = None) -> dict[str, Any]:
     ok = len(acc["ok"])
     out: dict[str, Any] = {"runs_ok": ok, "failed_runs": len(acc["failed"])}
     if not ok:
@@ -396,6 +455,9 @@ def _summarise(acc: dict[str, list], steps: int, ref: list[float] | None) -> dic
         "runs_needing_repair": len(first),
         "first_repair_step_median": float(np.median(first)) if first else None,
     })
+    if bound is not None:
+        out["pcrlb_rmse"] = float(np.sqrt(np.mean(bound)))
+        out["rmse_over_pcrlb"] = _finite(np.sqrt(sq.mean()) / out["pcrlb_rmse"])
     nees_arr = np.array(acc["nees"])
     if np.all(np.isfinite(nees_arr)):
         out.update(nees_summary(nees_arr, 3))
@@ -451,7 +513,7 @@ DESCRIPTION = (
 @register("robot", "seed 002: UKF vs SR-UKF vs the paper's cube-root UKF on a robot",
           default_runs=50)
 def run(runs: int, seed: int) -> ExperimentResult:
-    results, example = run_case(PAPER, runs, seed, keep_example=True)
+    results, example = run_case(PAPER, runs, seed, KINDS + COMPARED, keep_example=True)
     for kind, values in PAPER_TABLE1.items():
         results[kind]["paper"] = values
     excluded = []
@@ -469,7 +531,7 @@ def run(runs: int, seed: int) -> ExperimentResult:
     cases = {}
     for name, (cfg, text, full) in CASES.items():
         n = case_runs(runs, full)
-        res, _ = run_case(cfg, n, seed)
+        res, _ = run_case(cfg, n, seed, KINDS + COMPARED if name == "unicycle" else KINDS)
         cases[name] = {"description": text, "runs": n, "config": cfg.describe(),
                        "results": res}
     summary = {
@@ -496,6 +558,16 @@ def run(runs: int, seed: int) -> ExperimentResult:
             "first_repair_step_median).",
             "diverged_runs: eps_x above 10x the UKF's median eps_x, or non-finite.",
             "Secondary cases run max(2, runs // 10) runs (see each case's 'runs').",
+        ],
+        "notes_on_added_entries": [
+            "ekf, iekf, iplf (headline and unicycle case): the EKF and the iterated kinds on "
+            "the augmented state (EKF Jacobian with respect to [x, w, n]; iplf with the "
+            "cubature rule). The pose measurement is linear, so iekf's update is the EKF's and "
+            "iplf's the CKF's: each update stops after 2 iterations, iterating cannot help.",
+            "pcrlb_rmse: the posterior Cramer-Rao bound of the position along the true "
+            "trajectories (noise inside cos/sin, invertible in the noise: pcrlb_position), "
+            "same aggregation as rmse. Strict in the unicycle cases (x0-hat ~ N(x0, P0)); with "
+            "the paper's fixed x0-hat a model-based reference.",
         ],
     }
     return ExperimentResult(summary=summary, example=example)

@@ -20,12 +20,21 @@ from typing import Any
 
 import numpy as np
 
-from vtrack.estimation.bounds import chi2_band, nees, pcrlb_linear
-from vtrack.estimation.filters import GaussianFilter, make_filter
+from vtrack.estimation.bounds import chi2_band, paired_difference, pcrlb_linear
+from vtrack.estimation.filters import GaussianFilter
 from vtrack.estimation.models import Bearings, MeasurementModel, MotionModel, Ranges
+from vtrack.estimation.montecarlo import (
+    MonteCarloRun,
+    monte_carlo,
+    nees_series,
+    nees_summary,
+    rmse,
+    run_generators,
+    run_rmse,
+    squared_error,
+)
 from vtrack.experiments import ExampleRun, ExperimentResult, register
-from vtrack.estimation.bounds import paired_difference
-from vtrack.experiments._mcutil import nees_summary, run_generators
+from vtrack.filter_kinds import make_filter
 
 GAMMA_SWEEP = (1e-3, 1e-2, 5e-2)
 
@@ -148,29 +157,33 @@ def _filter(kind: str, motion: MotionModel, meas: MeasurementModel, x0: np.ndarr
     return make_filter(kind, motion, meas, x0, P0, **opts)
 
 
-def _run(f: GaussianFilter, z: np.ndarray, dt: float
-         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Predict + update for each z; estimates, covariances, NIS and the SIIM scale of R."""
-    xs = np.empty((len(z), f.x.size))
-    Ps = np.empty((len(z), f.x.size, f.x.size))
-    nis = np.empty(len(z))
-    rscale = np.empty(len(z))
-    for k, zk in enumerate(z):
-        f.predict(dt)
-        info = f.update(np.array([zk]))
-        xs[k], Ps[k] = f.x, f.P
-        nis[k] = float(info.nis)
-        rscale[k] = getattr(f, "r_scale", 1.0)
-    return xs, Ps, nis, rscale
+def run_filters(gammas: tuple[float, ...], motion: MotionModel, meas: MeasurementModel,
+                x0s: np.ndarray, P0: np.ndarray, z: np.ndarray, dt: float
+                ) -> dict[Any, MonteCarloRun]:
+    """The EKF ('ekf') and siim-ekf per gamma over the runs' scalar measurements z (R, K)
+    from the priors x0s (R, n) (the harness), recording the SIIM scale of R (r_scale)."""
+    record = {"r_scale": lambda f: getattr(f, "r_scale", 1.0)}
+    return {g: monte_carlo("ekf" if g == "ekf" else "siim-ekf",
+                           lambda r, g=g: _filter("ekf" if g == "ekf" else "siim-ekf", motion,
+                                                  meas, x0s[r], P0, None if g == "ekf" else g),
+                           z[..., None], dt, record=record)
+            for g in ("ekf",) + tuple(gammas)}
 
 
-def _entry(err_pos: np.ndarray, nees_v: np.ndarray, nis: np.ndarray, dof: int) -> dict[str, Any]:
-    sq = (err_pos**2).sum(axis=-1)                 # (runs, steps)
-    out = {"rmse": float(np.sqrt(sq.mean())),
-           "rmse_median_run": float(np.median(np.sqrt(sq.mean(axis=1)))),
-           "nis": float(nis.mean())}
-    out.update(nees_summary(nees_v, dof))
+def _entry(run: MonteCarloRun, truth: np.ndarray, pos: slice, dof: int) -> dict[str, Any]:
+    sq = squared_error(run.x, truth, pos)                 # (runs, steps)
+    out = {"rmse": rmse(sq), "rmse_median_run": float(np.median(run_rmse(sq))),
+           "nis": float(run.nis.mean())}
+    out.update(nees_summary(nees_series(run, truth), dof))
     return out
+
+
+def _gamma_entry(g: float, run: MonteCarloRun, ekf: MonteCarloRun, truth: np.ndarray,
+                 components: slice, key: str) -> dict[str, Any]:
+    """gamma, the final SIIM scale of R, and the paired `key` difference against the EKF."""
+    return {"gamma": g, "R_scale_final_mean": float(np.mean(run.series["r_scale"][:, -1])),
+            key: paired_difference(run_rmse(squared_error(run.x, truth, components)),
+                                   run_rmse(squared_error(ekf.x, truth, components)))}
 
 
 def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int,
@@ -181,32 +194,14 @@ def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int
     motion, meas = sc.models()
     P0 = np.eye(4)
     K = sc.samples - 1
-    truths = np.empty((runs, K, 4))
-    res: dict[Any, dict[str, list]] = {g: {"e": [], "nees": [], "nis": [], "rs": []}
-                                        for g in ("ekf",) + tuple(gammas)}
-    example = None
-    for r, (truth_rng, filt_rng) in enumerate(run_generators(seed, runs)):
-        X, z = simulate1(sc, truth_rng)
-        truths[r] = X[1:]
-        x0 = filt_rng.multivariate_normal(np.array(sc.X0), P0)
-        ests, covs, nees_ex = {}, {}, {}
-        for g in res:
-            kind = "ekf" if g == "ekf" else "siim-ekf"
-            f = _filter(kind, motion, meas, x0, P0, None if g == "ekf" else g)
-            xs, Ps, nis, rs = _run(f, z[1:], 1.0)
-            e = X[1:] - xs
-            res[g]["e"].append(e)
-            res[g]["nees"].append(nees(e, Ps))
-            res[g]["nis"].append(nis)
-            res[g]["rs"].append(rs)
-            if g in ("ekf", sc.M):
-                ests[kind], covs[kind], nees_ex[kind] = xs, Ps, res[g]["nees"][-1]
-        if keep_example and r == 0:
-            example = ExampleRun(times=np.arange(1, sc.samples, dtype=float), truth=X[1:],
-                                 estimates=ests, covariances=covs, nees=nees_ex,
-                                 sensors=np.array([sc.station]), measurements=z[1:, None],
-                                 extra_series={"siim-ekf:R_scale": np.array(res[sc.M]["rs"][0])
-                                               } if sc.M in res else {})
+    X, z, x0s = [], [], []
+    for truth_rng, filt_rng in run_generators(seed, runs):
+        Xr, zr = simulate1(sc, truth_rng)
+        X.append(Xr)
+        z.append(zr)
+        x0s.append(filt_rng.multivariate_normal(np.array(sc.X0), P0))
+    truths = np.array(X)[:, 1:]
+    res = run_filters(gammas, motion, meas, np.array(x0s), P0, np.array(z)[:, 1:], 1.0)
     # PCRLB along the same true trajectories (SEEDS 7.2): average H'R^-1H over runs per step
     Rinv = 1.0 / sc.R
     info = np.empty((K, 4, 4))
@@ -215,21 +210,27 @@ def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int
         info[k] = Rinv * np.einsum("rmi,rmj->ij", Hs, Hs) / runs
     bound = pcrlb_linear(motion.F(None, 1.0), motion.Q(1.0), P0, info)
     bound_pos = bound[:, 0, 0] + bound[:, 1, 1]                           # MSE bound per step
-    if example is not None:  # Monte Carlo per-step curves and the bound for the plot
+    pos = slice(0, 2)
+    example = None
+    if keep_example:
+        shown = {"ekf": res["ekf"]} | ({"siim-ekf": res[sc.M]} if sc.M in res else {})
+        example = ExampleRun(times=np.arange(1, sc.samples, dtype=float), truth=truths[0],
+                             estimates={k: r.x[0] for k, r in shown.items()},
+                             covariances={k: r.P[0] for k, r in shown.items()},
+                             nees={k: nees_series(r, truths)[0] for k, r in shown.items()},
+                             sensors=np.array([sc.station]), measurements=z[0][1:, None],
+                             extra_series={"siim-ekf:R_scale": res[sc.M].series["r_scale"][0]}
+                             if sc.M in res else {})
         example.extra_series["pcrlb"] = np.sqrt(bound_pos)
-        for g in ("ekf", sc.M):
-            if g in res:
-                kind = "ekf" if g == "ekf" else "siim-ekf"
-                e = np.array(res[g]["e"])
-                example.extra_series[f"rmse/{kind}"] = np.sqrt(
-                    (e[..., :2] ** 2).sum(axis=-1).mean(axis=0))
-                example.extra_series[f"nees/{kind}"] = np.mean(res[g]["nees"], axis=0)
+        for kind, r in shown.items():   # Monte Carlo per-step curves and the bound
+            example.extra_series[f"rmse/{kind}"] = np.sqrt(
+                squared_error(r.x, truths, pos).mean(axis=0))
+            example.extra_series[f"nees/{kind}"] = np.mean(nees_series(r, truths), axis=0)
     checkpoints = [5, 10, 20, 30, 39]
     entries = {}
-    for g, acc in res.items():
-        e = np.array(acc["e"])
-        ent = _entry(e[..., :2], np.array(acc["nees"]), np.array(acc["nis"]), 4)
-        per_step = np.sqrt((e[..., :2] ** 2).sum(axis=-1).mean(axis=0))
+    for g, run in res.items():
+        ent = _entry(run, truths, pos, 4)
+        per_step = np.sqrt(squared_error(run.x, truths, pos).mean(axis=0))
         ent.update({
             "pcrlb_rmse": float(np.sqrt(bound_pos.mean())),
             "rmse_over_pcrlb": float(ent["rmse"] / np.sqrt(bound_pos.mean())),
@@ -237,15 +238,11 @@ def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int
             "pcrlb_at_k": {str(k): float(np.sqrt(bound_pos[k - 1])) for k in checkpoints},
             "rmse_over_pcrlb_per_step_min": float(np.min(per_step / np.sqrt(bound_pos))),
             "rmse_over_pcrlb_per_step_max": float(np.max(per_step / np.sqrt(bound_pos))),
-            "speed_rmse": float(np.sqrt((e[..., 2:] ** 2).sum(axis=-1).mean())),
+            "speed_rmse": rmse(squared_error(run.x, truths, slice(2, 4))),
             "runs": runs,
         })
         if g != "ekf":
-            ent["gamma"] = g
-            ent["R_scale_final_mean"] = float(np.mean([rs[-1] for rs in acc["rs"]]))
-            ent["rmse_minus_ekf"] = paired_difference(
-                np.sqrt((e[..., :2] ** 2).sum(axis=-1).mean(axis=1)),
-                np.sqrt((np.array(res["ekf"]["e"])[..., :2] ** 2).sum(axis=-1).mean(axis=1)))
+            ent.update(_gamma_entry(g, run, res["ekf"], truths, pos, "rmse_minus_ekf"))
         entries[g] = ent
     ekf = entries.pop("ekf")
     return ekf, entries, example
@@ -255,37 +252,29 @@ def run_scenario2(sc: Scenario2, gammas: tuple[float, ...], runs: int, seed: int
                   ) -> tuple[dict[str, Any], dict[float, dict[str, Any]]]:
     motion, meas = sc.models()
     P0 = sc.P0 * np.eye(3)
-    res: dict[Any, dict[str, list]] = {g: {"e": [], "nees": [], "nis": [], "rs": []}
-                                        for g in ("ekf",) + tuple(gammas)}
+    refs, z = [], []
     for truth_rng, _ in run_generators(seed, runs):
-        truth, z = simulate2(sc, truth_rng)
-        ref = np.column_stack([truth[:, 0], np.full(len(z), 1000.0), np.full(len(z), 100.0)])
-        for g in res:
-            kind = "ekf" if g == "ekf" else "siim-ekf"
-            f = _filter(kind, motion, meas, np.array(sc.xhat0), P0, None if g == "ekf" else g)
-            xs, Ps, nis, rs = _run(f, z, sc.dt)
-            e = xs - ref
-            res[g]["e"].append(e)
-            res[g]["nees"].append(nees(e, Ps))
-            res[g]["nis"].append(nis)
-            res[g]["rs"].append(rs)
+        truth, zr = simulate2(sc, truth_rng)
+        refs.append(np.column_stack([truth[:, 0], np.full(len(zr), 1000.0),
+                                     np.full(len(zr), 100.0)]))
+        z.append(zr)
+    ref = np.array(refs)
+    x0s = np.broadcast_to(np.array(sc.xhat0), (runs, 3))
+    res = run_filters(gammas, motion, meas, x0s, P0, np.array(z), sc.dt)
     entries = {}
-    for g, acc in res.items():
-        e = np.array(acc["e"])
-        ent = _entry(e[..., :2], np.array(acc["nees"]), np.array(acc["nis"]), 3)
+    for g, run in res.items():
+        ent = _entry(run, ref, slice(0, 2), 3)
         ent.update({
-            "speed_rmse": float(np.sqrt((e[..., 2] ** 2).mean())),
-            "altitude_rmse": float(np.sqrt((e[..., 1] ** 2).mean())),
-            "distance_rmse": float(np.sqrt((e[..., 0] ** 2).mean())),
-            "speed_rmse_last_100": float(np.sqrt((e[:, -100:, 2] ** 2).mean())),
+            "speed_rmse": rmse(squared_error(run.x, ref, slice(2, 3))),
+            "altitude_rmse": rmse(squared_error(run.x, ref, slice(1, 2))),
+            "distance_rmse": rmse(squared_error(run.x, ref, slice(0, 1))),
+            "speed_rmse_last_100": rmse(squared_error(run.x[:, -100:], ref[:, -100:],
+                                                      slice(2, 3))),
             "runs": runs,
         })
         if g != "ekf":
-            ent["gamma"] = g
-            ent["R_scale_final_mean"] = float(np.mean([rs[-1] for rs in acc["rs"]]))
-            ent["speed_rmse_minus_ekf"] = paired_difference(
-                np.sqrt((e[..., 2] ** 2).mean(axis=1)),
-                np.sqrt((np.array(res["ekf"]["e"])[..., 2] ** 2).mean(axis=1)))
+            ent.update(_gamma_entry(g, run, res["ekf"], ref, slice(2, 3),
+                                    "speed_rmse_minus_ekf"))
         entries[g] = ent
     ekf = entries.pop("ekf")
     return ekf, entries

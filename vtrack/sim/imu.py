@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vtrack.estimation.so3 import log_so3
+from vtrack.ins.so3 import log_so3
 from vtrack.sim.ins_trajectory import GRAVITY_N, Manoeuvres, Trajectory, body_rates
 
 DEG = np.pi / 180.0

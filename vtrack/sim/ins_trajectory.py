@@ -10,7 +10,7 @@ smoothstep transitions).  From them
 
 and the attitude R_b^n = Rz(psi) Ry(-gamma) Rx(phi): body x along the velocity (no
 sideslip, no angle of attack), the UAV banked for a coordinated turn (no lateral specific
-force), the car's roll fixed at 0.  Frames as in vtrack.estimation.so3 (ENU / FLU).
+force), the car's roll fixed at 0.  Frames as in vtrack.ins.so3 (ENU / FLU).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.estimation.so3 import dcm_to_euler, log_so3, rot_x, rot_y, rot_z
+from vtrack.ins.so3 import dcm_to_euler, log_so3, rot_x, rot_y, rot_z
 
 G0 = 9.80665                        # m/s^2, seed eq. 27
 GRAVITY_N = np.array([0.0, 0.0, -G0])

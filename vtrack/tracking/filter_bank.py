@@ -16,7 +16,8 @@ innovations.
 from __future__ import annotations
 
 import numpy as np
-from vtrack.estimation.filters import GaussianFilter, make_filter
+from vtrack.estimation.filters import GaussianFilter
+from vtrack.filter_kinds import make_filter
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import ConstantAcceleration, position_measurement
 from vtrack.tracking.config import TrackerConfig

@@ -1,7 +1,7 @@
 """Rotation helpers for strapdown navigation (seed 001 section 4): skew matrices, the SO(3)
 exponential and logarithm (Rodrigues), and ZYX Euler angles.
 
-Conventions (used by vtrack.estimation.ins and vtrack.sim.ins_trajectory):
+Conventions (used by vtrack.ins.strapdown and vtrack.sim.ins_trajectory):
 * navigation frame n = local-level East-North-Up (g^n = [0, 0, -9.80665], seed eq. 27);
 * body frame b = Forward-Left-Up;
 * R = R_b^n = Rz(yaw) Ry(pitch) Rx(roll) maps body vectors to n.  Yaw is counter-clockwise

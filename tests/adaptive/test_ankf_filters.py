@@ -1,20 +1,20 @@
-"""ANKF1 / ANKF2 (vtrack.estimation.adaptive; SEEDS 2.4): window behaviour, the R floor, the
+"""ANKF1 / ANKF2 (vtrack.adaptive.ankf; SEEDS 2.4): window behaviour, the R floor, the
 fading-factor clips, missing cells and option validation."""
 
 import numpy as np
 import pytest
 
-from vtrack.estimation.adaptive import (
+from vtrack.adaptive.ankf import (
     FadingAdaptiveEKF,
     InnovationAdaptiveEKF,
-    InnovationWindow,
     fading_factors,
     iae_measurement_noise,
     scale_noise,
 )
-from vtrack.estimation.filters import FILTER_KINDS, make_filter
+from vtrack.adaptive.innovation_windows import InnovationCovarianceWindow
 from vtrack.estimation.kalman import kf_update
 from vtrack.estimation.models import Bearings, WienerVelocity, position_measurement
+from vtrack.filter_kinds import FILTER_KINDS, make_filter
 
 DT = 0.01
 SENSORS = np.array([[1.0, -2.0], [1.0, 2.0]])
@@ -81,7 +81,7 @@ def test_bad_options_are_rejected(kind, opts, msg):
 
 
 def test_window_is_a_ring_buffer():
-    w = InnovationWindow(3, 2)
+    w = InnovationCovarianceWindow(3, 2)
     rng = np.random.default_rng(0)
     nus = rng.standard_normal((7, 2))
     for i, nu in enumerate(nus):
@@ -96,7 +96,7 @@ def test_window_is_a_ring_buffer():
 
 
 def test_window_works_on_stacks():
-    w = InnovationWindow(4, (5, 2))
+    w = InnovationCovarianceWindow(4, (5, 2))
     rng = np.random.default_rng(1)
     nus = rng.standard_normal((6, 5, 2))
     for nu in nus:

@@ -19,7 +19,7 @@ Attitude rows (magnetometer aiding), `attitude_mode`:
   with it), whatever the vehicle does.
 * "heading": the heading row only.
 H maps the Euler-angle differences to the error state exactly to first order (so3 /
-ins.attitude_jacobian), including the leak of the tilt and of the sensor biases into the
+strapdown.attitude_jacobian), including the leak of the tilt and of the sensor biases into the
 measured angles.
 """
 
@@ -30,12 +30,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from vtrack.estimation.ins import (
+from vtrack.estimation.kalman import kf_predict, kf_update
+from vtrack.ins.so3 import dcm_to_euler
+from vtrack.ins.strapdown import (
     GRAVITY_N, NavState, attitude_jacobian, correct, error_dynamics, heading_from_mag,
     heading_jacobian, mechanize, process_noise, tilt_from_accel, tilt_jacobian, transition,
     wrap)
-from vtrack.estimation.kalman import kf_predict, kf_update
-from vtrack.estimation.so3 import dcm_to_euler
 
 DEG = np.pi / 180.0
 Recorder = Callable[[int, NavState, np.ndarray], None]

@@ -1,18 +1,13 @@
-"""Fuzzy-adaptive filter kinds (fuzzy-r, fuzzy-q of seed 003; siim-ekf of seed 004).
+"""Fuzzy-adaptive filter kinds fuzzy-r and fuzzy-q of seed 003 (Hamid et al. 2018,
+SEEDS 5.3), and the Mamdani inference they use.
 
-All three are ExtendedKalmanFilter subclasses: the Kalman maths is the shared Joseph-form
-step (vtrack.estimation.kalman); what is added here is only how Q and R change between steps.
-
-* ``fuzzy-r`` / ``fuzzy-q`` (seed 003, SEEDS 5.3): per measurement axis j, the windowed
-  "actual" innovation variance Sr_jj = (1/N) sum nu_j^2 is compared with the filter's
-  theoretical S_jj = [H P- H' + R]_jj by the nine-rule Mamdani FIS of the paper's Table 1.
-  The output changes R additively (R_jj += AdjR) or Q multiplicatively (Q *= AdjQ).
-* ``siim-ekf`` (seed 004, SEEDS 6.2): a 2-input, 4-rule "simplified indirect inference"
-  fuzzy system gives alpha in [-1, 1] from the relative covariance-trace drop and the
-  relative residual; then Q <- (1 - gamma alpha) Q and R <- (1 + gamma alpha) R.
-
-The adapted Q or R applies from the next step on (R_{k+1} = R_k + AdjR in the paper's
-notation); the Joseph form keeps P valid with the resulting non-optimal gains.
+Both are the core EKF (vtrack.estimation.filters.ExtendedKalmanFilter) with its Q/R hooks:
+per measurement axis j, the windowed "actual" innovation variance Sr_jj = (1/N) sum nu_j^2
+is compared with the filter's theoretical S_jj = [H P- H' + R]_jj by the nine-rule Mamdani
+FIS of the paper's Table 1; the output changes R additively (R_jj += AdjR) or Q
+multiplicatively (Q *= AdjQ). The adapted Q or R applies from the next step on
+(R_{k+1} = R_k + AdjR in the paper's notation); the Joseph form keeps P valid with the
+resulting non-optimal gains.
 """
 
 from __future__ import annotations
@@ -22,9 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.estimation.filters import ExtendedKalmanFilter, register
-from vtrack.estimation.kalman import Innovation, kf_predict
+from vtrack.adaptive.innovation_windows import InnovationVarianceWindow
+from vtrack.estimation.filters import ExtendedKalmanFilter
+from vtrack.estimation.kalman import Innovation
 from vtrack.estimation.models import MeasurementModel, MotionModel
+from vtrack.estimation.options import float_option, int_option
+from vtrack.estimation.registry import register
 
 # ------------------------------------------------------------------ Mamdani inference
 
@@ -138,29 +136,6 @@ def fuzzy_adjustment(S: np.ndarray, Sr: np.ndarray, ref: np.ndarray, rules: int 
 # ------------------------------------------------------------- seed 003: fuzzy-r / fuzzy-q
 
 
-class InnovationWindow:
-    """Per-axis ring buffers of the last N innovations (SEEDS 1.6): Sr_jj = mean nu_j^2 (no
-    mean removal). A missing cell adds nothing to its axis' buffer."""
-
-    def __init__(self, m: int, size: int) -> None:
-        if size < 1:
-            raise ValueError(f"innovation window must be >= 1, got {size}")
-        self.size = size
-        self.buf = np.zeros((m, size))
-        self.count = np.zeros(m, dtype=int)
-
-    def push(self, rows: np.ndarray, nu: np.ndarray) -> None:
-        slot = self.count[rows] % self.size
-        self.buf[rows, slot] = nu
-        self.count[rows] += 1
-
-    def full(self, rows: np.ndarray) -> np.ndarray:
-        return self.count[rows] >= self.size
-
-    def second_moment(self, rows: np.ndarray) -> np.ndarray:
-        return np.mean(self.buf[rows] ** 2, axis=-1)
-
-
 def _state_axes(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray) -> np.ndarray:
     """For each state component, the measurement axis it feeds most strongly (through
     |H| sum_p |F|^p), or -1 if none: how a per-axis Q scale is spread over the state."""
@@ -193,25 +168,21 @@ class FuzzyAdaptiveKF(ExtendedKalmanFilter):
         super().__init__(motion, measurement, x0, P0)
         if target not in ("R", "Q"):
             raise ValueError(f"target must be 'R' or 'Q', got {target!r}")
-        if not step > 0:
-            raise ValueError(f"fuzzy step must be > 0, got {step}")
         self.target = target
         self.kind = "fuzzy-r" if target == "R" else "fuzzy-q"
-        self.step_size = float(step)
-        self.rules = int(rules)
+        self.step_size = float_option("step", step, 0.0)
+        self.rules = int_option("rules", rules, 1)
         fuzzy_adjustment(np.ones(1), np.ones(1), np.ones(1), self.rules)  # validate `rules`
-        self.floor, self.ceiling = float(floor), float(ceiling)
+        self.floor, self.ceiling = float_option("floor", floor), float_option("ceiling", ceiling)
         self.R_nom = np.array(measurement.R, dtype=float)
         self.R = self.R_nom.copy()
         self.ref = np.diag(self.R_nom).copy()
         self.q_scale = np.ones(measurement.m)
-        self.window = InnovationWindow(measurement.m, int(window))
-        axes = _state_axes(motion, measurement, self.x)
-        self._axes = axes
-        self._rows = np.arange(measurement.m)
+        self.window = InnovationVarianceWindow(measurement.m, int_option("window", window, 1))
+        self._axes = _state_axes(motion, measurement, self.x)
 
-    # the process noise the filter currently assumes
-    def Q(self, dt: float) -> np.ndarray:
+    def process_noise(self, dt: float) -> np.ndarray:
+        """The process noise the filter currently assumes: Q_nom, or (fuzzy-q) D Q_nom D."""
         Q = self.motion.Q(dt)
         if self.target == "R":
             return Q
@@ -220,19 +191,14 @@ class FuzzyAdaptiveKF(ExtendedKalmanFilter):
         d = np.sqrt(s)
         return d[:, None] * Q * d[None, :]
 
-    def predict(self, dt: float, u: np.ndarray | None = None) -> None:
-        F = self.motion.F(self.x, dt, u)
-        self.x, self.P = kf_predict(self.x, self.P, F, self.Q(dt),
-                                    fx=self.motion.f(self.x, dt, u))
-
-    def update(self, z: np.ndarray) -> Innovation | None:
-        self._rows = np.flatnonzero(np.isfinite(np.asarray(z, dtype=float)))
-        return super().update(z)
+    def measurement_noise(self, meas: MeasurementModel) -> np.ndarray:
+        """The adapted R on the rows of `meas`."""
+        rows = meas.row_indices()
+        return self.R[np.ix_(rows, rows)]
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
-        rows = self._rows
-        info = self._kalman_update(meas, z, self.R[np.ix_(rows, rows)])
-        self._adapt(rows, info)
+        info = super()._update(meas, z)
+        self._adapt(meas.row_indices(), info)
         return info
 
     def _adapt(self, rows: np.ndarray, info: Innovation) -> None:
@@ -262,7 +228,7 @@ def _fuzzy_r(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np
     """fuzzy-r: R adapted additively (seed 003 eq. R_{k+1} = R_k + AdjR), Q fixed. Options:
     window N (15), step delta/R_nom (0.05), rules (9 = paper, 3 = Escamilla-Ambrosio & Mort),
     floor (0.01) and ceiling (100) on R_jj / R_nom,jj."""
-    return FuzzyAdaptiveKF(motion, meas, x0, P0, "R", **_fuzzy_opts(opts))
+    return FuzzyAdaptiveKF(motion, meas, x0, P0, "R", **opts)
 
 
 @register("fuzzy-q", _FUZZY_OPTIONS)
@@ -270,124 +236,10 @@ def _fuzzy_q(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np
              **opts: float) -> FuzzyAdaptiveKF:
     """fuzzy-q: Q adapted multiplicatively (Q_{k+1} = Q_k AdjQ, AdjQ in [1 - eta, 1 + eta],
     eta = step = 0.05), R fixed; same options as fuzzy-r (floor/ceiling on the Q scale)."""
-    return FuzzyAdaptiveKF(motion, meas, x0, P0, "Q", **_fuzzy_opts(opts, "fuzzy-q"))
-
-
-def _number(kind: str, key: str, value: object) -> float:
-    """A finite numeric option (TOML may hand over strings or booleans)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-        raise ValueError(f"filter kind {kind!r}: option {key} must be a number, got {value!r}")
-    v = float(value)
-    if not np.isfinite(v):
-        raise ValueError(f"filter kind {kind!r}: option {key} must be finite, got {v}")
-    return v
-
-
-def _fuzzy_opts(opts: Mapping[str, object], kind: str = "fuzzy-r") -> dict[str, float]:
-    out: dict[str, float] = {k: _number(kind, k, v) for k, v in opts.items()}
-    for key in ("window", "rules"):
-        if key in out:
-            if out[key] != int(out[key]):
-                raise ValueError(f"filter kind {kind!r}: option {key} must be an integer, "
-                                 f"got {out[key]}")
-            out[key] = int(out[key])
-    return out
-
-
-# --------------------------------------------------------------- seed 004: SIIM fuzzy EKF
-
-
-def siim_pa(x: np.ndarray) -> np.ndarray:
-    """Monotone linear input membership PA(x) = (x + 1)/2 on [-1, 1] (seed 004 eq. 13, L = 1)."""
-    return (np.clip(x, -1.0, 1.0) + 1.0) / 2.0
-
-
-def siim_pc_inv(w: np.ndarray, M: float = 1.0) -> np.ndarray:
-    """Inverse of the output term PC (eq. 16, reconstructed): M(-2 + sqrt(21.25 - (w-4.5)^2)),
-    an arc through (0, -M) and (1, +M). NC^-1 = -PC^-1."""
-    return M * (-2.0 + np.sqrt(21.25 - (np.asarray(w, dtype=float) - 4.5) ** 2))
-
-
-SIIM_RULES: tuple[tuple[int, str, int], ...] = (
-    # (input index, input term, output sign: +1 = PC, -1 = NC)
-    (0, "PA", +1),   # R1: if x1 is PA then u11 is PC
-    (0, "NA", -1),   # R2: if x1 is NA then u12 is NC
-    (1, "PA", +1),   # R3: if x2 is PA then u21 is PC
-    (1, "NA", -1),   # R4: if x2 is NA then u22 is NC
-)
-
-
-def siim_alpha(x1: np.ndarray, x2: np.ndarray, M: float = 1.0) -> np.ndarray:
-    """SIIM output alpha = sum w_i u_i / sum w_i with u_i read off the inverse output term at
-    the firing degree w_i (eqs. 17-19). Equals (g(x1) + g(x2))/2, g odd and monotone,
-    g(0) = 0, g(+-1) = +-M (SEEDS 6.2)."""
-    xs = (np.asarray(x1, dtype=float), np.asarray(x2, dtype=float))
-    num = 0.0
-    den = 0.0
-    for i, term, sign in SIIM_RULES:
-        pa = siim_pa(xs[i])
-        w = pa if term == "PA" else 1.0 - pa
-        num = num + w * sign * siim_pc_inv(w, M)
-        den = den + w
-    return num / den
-
-
-class SIIMExtendedKalmanFilter(ExtendedKalmanFilter):
-    """Seed 004's SIIM fuzzy-logic EKF (Chai 2016), SEEDS 6.2.
-
-    After each (Joseph-form) EKF update:
-        x1 = (tr P- - tr P) / tr P-                 (in [0, 1])
-        x2 = mean_j clip(nu_j / max(|z_j|, sqrt(R_nom,jj)), -1, 1)   (nu wrapped for angles)
-        alpha = SIIM(x1, x2) in [-1, 1]  (normalised universe, M = 1 in eq. 16)
-        Q <- (1 - gamma alpha) Q,  R <- (1 + gamma alpha) R,  both clamped to
-        [1e-3, 1e3] x nominal (eq. 20 with gamma = the paper's M).
-    The x2 denominator is guarded by the measurement's nominal std (relative residuals below
-    the noise level are not meaningful); for a scalar measurement the mean is the plain x2.
-    """
-
-    kind = "siim-ekf"
-
-    def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
-                 P0: np.ndarray, gamma: float = 1e-4, lo: float = 1e-3, hi: float = 1e3
-                 ) -> None:
-        super().__init__(motion, measurement, x0, P0)
-        self.gamma = float(gamma)
-        if not 0.0 <= self.gamma < 1.0:
-            raise ValueError(f"siim-ekf gamma must be in [0, 1), got {gamma}")
-        self.lo, self.hi = float(lo), float(hi)
-        self.q_scale = 1.0
-        self.r_scale = 1.0
-        self.alpha = 0.0
-
-    def predict(self, dt: float, u: np.ndarray | None = None) -> None:
-        F = self.motion.F(self.x, dt, u)
-        self.x, self.P = kf_predict(self.x, self.P, F, self.q_scale * self.motion.Q(dt),
-                                    fx=self.motion.f(self.x, dt, u))
-
-    def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
-        tr_prior = float(np.trace(self.P))
-        info = self._kalman_update(meas, z, self.r_scale * meas.R)
-        x1 = (tr_prior - float(np.trace(self.P))) / tr_prior if tr_prior > 0 else 0.0
-        denom = np.maximum(np.abs(z), np.sqrt(np.diag(meas.R)))
-        x2 = float(np.mean(np.clip(info.nu / denom, -1.0, 1.0)))
-        self.alpha = float(siim_alpha(x1, x2))
-        self.q_scale = float(np.clip(self.q_scale * (1.0 - self.gamma * self.alpha),
-                                     self.lo, self.hi))
-        self.r_scale = float(np.clip(self.r_scale * (1.0 + self.gamma * self.alpha),
-                                     self.lo, self.hi))
-        return info
-
-
-@register("siim-ekf", ("gamma",))
-def _siim_ekf(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray, P0: np.ndarray,
-              **opts: float) -> SIIMExtendedKalmanFilter:
-    """siim-ekf: option gamma (the paper's M; default 1e-4, seed 004 scenario 2)."""
-    return SIIMExtendedKalmanFilter(motion, meas, x0, P0,
-                                    **{k: _number("siim-ekf", k, v) for k, v in opts.items()})
+    return FuzzyAdaptiveKF(motion, meas, x0, P0, "Q", **opts)
 
 
 __all__: Sequence[str] = (
     "Mamdani", "HAMID_FIS", "HAMID_RULES", "LEVELS", "EM_FIS", "FuzzyAdaptiveKF",
-    "InnovationWindow", "SIIMExtendedKalmanFilter", "fuzzy_adjustment", "siim_alpha",
-    "gaussian_mf", "triangular_mf",
+    "fuzzy_adjustment", "gaussian_mf", "triangular_mf",
 )

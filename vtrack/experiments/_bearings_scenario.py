@@ -1,11 +1,12 @@
-"""Seed 000 bearings-only tracking (BOT) scenario shared by the `bearings-*` and `ankf`
-experiments: constants, truth generators, measurements, a Monte Carlo driver and metrics.
+"""Seed 000's bearings-only tracking scenario, shared by the `bearings-2`, `bearings-3` and
+`ankf` experiments: constants, truth generators, measurements, the PCRLB, and the metrics of
+their JSON, on the Monte Carlo harness (vtrack.estimation.montecarlo).
 
-Every filter comes from the shared core (`make_filter`). The EKF, ANKF1 and ANKF2 may run all
-Monte Carlo runs at once: those paths are the core steps with a leading run axis
-(kalman.kf_predict, models.residual/h/H, kalman.kf_update, adaptive.ankf1_update/ankf2_update,
-with the options validated by building the core filter), and tests check them against the
-per-run core filters. The UKF and CKF always run as per-run core filter objects.
+Every filter comes from `vtrack.filter_kinds.make_filter` and runs per Monte Carlo run
+through the harness. The EKF, ANKF1 and ANKF2 may instead run all runs at once: those paths
+are the core steps with a leading run axis (kalman.kf_predict, models.residual/h/H,
+kalman.kf_update, adaptive.ankf.ankf1_update/ankf2_update, with the options validated by
+building the filter), and tests check them against the per-run filters.
 """
 
 from __future__ import annotations
@@ -14,13 +15,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vtrack.estimation.adaptive import InnovationWindow, ankf1_update, ankf2_update
-from vtrack.estimation.bounds import chi2_band, nees, paired_difference, pcrlb_linear
-from vtrack.estimation.filters import make_filter
+from vtrack.adaptive.ankf import ankf1_update, ankf2_update
+from vtrack.adaptive.innovation_windows import InnovationCovarianceWindow
+from vtrack.estimation.bounds import chi2_band, paired_difference, pcrlb_linear
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.linalg import EstimationError, wrap_angle
 from vtrack.estimation.models import Bearings, WienerVelocity
+from vtrack.estimation.montecarlo import (
+    MonteCarloRun,
+    monte_carlo,
+    nees_series,
+    rmse,
+    run_rmse,
+    squared_error,
+)
 from vtrack.experiments import ExampleRun
+from vtrack.filter_kinds import make_filter
 
 # ---------------------------------------------------------------- parameters (SEEDS 2.3)
 
@@ -128,26 +138,28 @@ def turning_truth(seeds: list[int]) -> np.ndarray:
     return out
 
 
-def wiener_truth(seeds: list[int], q: float = Q_TRUE) -> np.ndarray:
-    """Model-matched truth: x_k = F x_{k-1} + v, v ~ N(0, Q(q)) from X0_TRUE (SEEDS 2.6).
-    Returns (runs, 500, 4)."""
+def wiener_truth(seeds: list[int], q: float = Q_TRUE, dt: float = DT, steps: int = STEPS,
+                 x0: np.ndarray = X0_TRUE) -> np.ndarray:
+    """Model-matched truth: x_k = F x_{k-1} + v, v ~ N(0, Q(q)) from x0 (SEEDS 2.6).
+    Returns (runs, steps, 4)."""
     model = WienerVelocity(q)
-    F, L = model.transition(DT), np.linalg.cholesky(model.Q(DT))
-    out = np.empty((len(seeds), STEPS, 4))
+    F, L = model.transition(dt), np.linalg.cholesky(model.Q(dt))
+    out = np.empty((len(seeds), steps, 4))
     for r, s in enumerate(seeds):
-        w = _rng(s, 0).standard_normal((STEPS, 4)) @ L.T
-        x = X0_TRUE.copy()
-        for k in range(STEPS):
+        w = _rng(s, 0).standard_normal((steps, 4)) @ L.T
+        x = np.array(x0, dtype=float)
+        for k in range(steps):
             x = F @ x + w[k]
             out[r, k] = x
     return out
 
 
-def randomised_priors(seeds: list[int]) -> np.ndarray:
+def randomised_priors(seeds: list[int], x0: np.ndarray = X0_TRUE, P0: np.ndarray = P0
+                      ) -> np.ndarray:
     """Initial estimates m0_r = x0 + N(0, P0) from each run's filter stream: the truth is then a
     sample of the filter's prior N(m0, P0), as the strict PCRLB needs (SEEDS 7.2)."""
     L = np.linalg.cholesky(P0)
-    return np.array([X0_TRUE + L @ _rng(s, 2).standard_normal(4) for s in seeds])
+    return np.array([x0 + L @ _rng(s, 2).standard_normal(4) for s in seeds])
 
 
 def measure(truth: np.ndarray, sensors: np.ndarray, sigma: float | np.ndarray,
@@ -165,19 +177,6 @@ def measure(truth: np.ndarray, sensors: np.ndarray, sigma: float | np.ndarray,
 
 
 # --------------------------------------------------------------------------- filtering
-
-
-@dataclass
-class FilterRun:
-    """Posterior means (runs, K, n) and covariances (runs, K, n, n) of one filter over all runs;
-    `failed[r]` is True when the core raised (that run's arrays are NaN); `series` holds
-    per-step diagnostics of the adaptive filters (runs, K, ...)."""
-
-    kind: str
-    x: np.ndarray
-    P: np.ndarray
-    failed: np.ndarray
-    series: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def _batch_start(kind: str, motion: WienerVelocity, meas: Bearings, Z: np.ndarray,
@@ -198,32 +197,32 @@ def _batch_innovation(meas: Bearings, z: np.ndarray, x: np.ndarray
 
 
 def batched_ekf(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
-                P0: np.ndarray, **options: object) -> FilterRun:
+                P0: np.ndarray, dt: float = DT, **options: object) -> MonteCarloRun:
     """The core EKF over all runs at once: kf_predict, then nu = residual(z, h(x-)) and
     kf_update with H(x-), every array carrying a leading run axis (seed 000 eqs. 7-9)."""
     _, x, P, X, PP = _batch_start("ekf", motion, meas, Z, x0s, P0, options)
-    F, Q = motion.F(x[0], DT), motion.Q(DT)
+    F, Q = motion.F(x[0], dt), motion.Q(dt)
     for k in range(Z.shape[1]):
-        x, P = kf_predict(x, P, F, Q, fx=motion.f(x, DT))
+        x, P = kf_predict(x, P, F, Q, fx=motion.f(x, dt))
         nu, H = _batch_innovation(meas, Z[:, k], x)
         x, P, _ = kf_update(x, P, nu, H, meas.R)
         X[:, k], PP[:, k] = x, P
-    return FilterRun("ekf", X, PP, np.zeros(len(Z), dtype=bool))
+    return MonteCarloRun("ekf", X, PP, np.zeros(len(Z), dtype=bool))
 
 
 def batched_ankf1(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
-                  P0: np.ndarray, **options: object) -> FilterRun:
+                  P0: np.ndarray, dt: float = DT, **options: object) -> MonteCarloRun:
     """ANKF1 over all runs at once: the prediction of InnovationAdaptiveEKF.predict and the
     core's adaptive.ankf1_update (what the class calls for a full measurement vector) with a
     leading run axis. Needs every measurement present."""
     f, x, P, X, PP = _batch_start("ankf1", motion, meas, Z, x0s, P0, options)
     runs, K, m = Z.shape
-    F, Q = motion.F(x[0], DT), motion.Q(DT)
-    window = InnovationWindow(f.window.size, (runs, m))
+    F, Q = motion.F(x[0], dt), motion.Q(dt)
+    window = InnovationCovarianceWindow(f.window.size, (runs, m))
     R_hat = Q_hat = None
     r_used = np.empty((runs, K, m))
     for k in range(K):
-        x, P = kf_predict(x, P, F, Q if Q_hat is None else Q_hat, fx=motion.f(x, DT))
+        x, P = kf_predict(x, P, F, Q if Q_hat is None else Q_hat, fx=motion.f(x, dt))
         nu, H = _batch_innovation(meas, Z[:, k], x)
         x, P, _, R, R_hat, Q_new = ankf1_update(x, P, nu, H, meas.R, window, f.r_floor,
                                                 f.adapt_r, f.adapt_q, R_hat)
@@ -231,22 +230,22 @@ def batched_ankf1(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np
             Q_hat = Q_new
         X[:, k], PP[:, k] = x, P
         r_used[:, k] = np.diagonal(R, axis1=-2, axis2=-1)
-    return FilterRun("ankf1", X, PP, np.zeros(runs, dtype=bool), {"R_used": r_used})
+    return MonteCarloRun("ankf1", X, PP, np.zeros(runs, dtype=bool), series={"R_used": r_used})
 
 
 def batched_ankf2(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
-                  P0: np.ndarray, **options: object) -> FilterRun:
+                  P0: np.ndarray, dt: float = DT, **options: object) -> MonteCarloRun:
     """ANKF2 over all runs at once: the prediction of FadingAdaptiveEKF.predict (Pprop kept
     apart from Q) and the core's adaptive.ankf2_update with a leading run axis. Needs every
     measurement present."""
     f, x, P, X, PP = _batch_start("ankf2", motion, meas, Z, x0s, P0, options)
     runs, K, m = Z.shape
-    F, Q = motion.F(x[0], DT), motion.Q(DT)
-    window = InnovationWindow(f.window.size, (runs, m))
+    F, Q = motion.F(x[0], dt), motion.Q(dt)
+    window = InnovationCovarianceWindow(f.window.size, (runs, m))
     lambda_R = None
     r_used, lam_p = np.empty((runs, K, m)), np.empty((runs, K))
     for k in range(K):
-        x, Pprop = kf_predict(x, P, F, np.zeros_like(Q), fx=motion.f(x, DT))
+        x, Pprop = kf_predict(x, P, F, np.zeros_like(Q), fx=motion.f(x, dt))
         nu, H = _batch_innovation(meas, Z[:, k], x)
         x, P, _, R, lam, lambda_R = ankf2_update(
             x, Pprop, Q, nu, H, meas.R, window, f.lambda_max, f.ratio_min, f.ratio_max,
@@ -254,62 +253,40 @@ def batched_ankf2(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np
         X[:, k], PP[:, k] = x, P
         r_used[:, k] = np.diagonal(R, axis1=-2, axis2=-1)
         lam_p[:, k] = lam
-    return FilterRun("ankf2", X, PP, np.zeros(runs, dtype=bool),
-                     {"R_used": r_used, "lambda_P": lam_p})
+    return MonteCarloRun("ankf2", X, PP, np.zeros(runs, dtype=bool),
+                         series={"R_used": r_used, "lambda_P": lam_p})
 
 
 _BATCHED = {"ekf": batched_ekf, "ankf1": batched_ankf1, "ankf2": batched_ankf2}
-_DIAGNOSTICS = {"ankf1": ("R_used",), "ankf2": ("R_used", "lambda_P")}
+_DIAGNOSTICS = {  # per-step diagnostics of the adaptive kinds (diag of the R used, fading)
+    "ankf1": {"R_used": lambda f: np.diagonal(f.R_used)},
+    "ankf2": {"R_used": lambda f: np.diagonal(f.R_used), "lambda_P": lambda f: f.lambda_P},
+}
 
 
 def run_filter(kind: str, motion: WienerVelocity, meas: Bearings, Z: np.ndarray,
-               x0s: np.ndarray, P0: np.ndarray, batch: bool = True, **options: object
-               ) -> FilterRun:
-    """Run filter `kind` (core make_filter) over every run. The EKF, ANKF1 and ANKF2 run all
-    runs at once unless batch=False (the same core functions with a run axis; tests check the
-    numbers against the per-run filters); if a batched run fails, all runs are redone one by
-    one so that only the failing run is marked."""
+               x0s: np.ndarray, P0: np.ndarray, batch: bool = True, dt: float = DT,
+               **options: object) -> MonteCarloRun:
+    """Run filter `kind` over every run (the harness, montecarlo.monte_carlo). The EKF, ANKF1
+    and ANKF2 run all runs at once unless batch=False (the same core functions with a run
+    axis; tests check the numbers against the per-run filters); if a batched run fails, all
+    runs are redone one by one so that only the failing run is marked."""
     if batch and kind in _BATCHED and np.all(np.isfinite(Z)):
         try:
-            out = _BATCHED[kind](motion, meas, Z, x0s, P0, **options)
+            out = _BATCHED[kind](motion, meas, Z, x0s, P0, dt, **options)
             if np.all(np.isfinite(out.x)) and np.all(np.isfinite(out.P)):
                 return out
         except (EstimationError, np.linalg.LinAlgError):
             pass
-    runs, K, _ = Z.shape
-    n = len(x0s[0])
-    X = np.full((runs, K, n), np.nan)
-    PP = np.full((runs, K, n, n), np.nan)
-    failed = np.zeros(runs, dtype=bool)
-    diag_names = _DIAGNOSTICS.get(kind, ())
-    series: dict[str, list] = {name: [] for name in diag_names}
-    for r in range(runs):
-        run_series = {name: [] for name in diag_names}
-        try:
-            f = make_filter(kind, motion, meas, x0s[r], P0, **options)
-            for k in range(K):
-                f.step(DT, Z[r, k])
-                X[r, k], PP[r, k] = f.x, f.P
-                for name in diag_names:
-                    value = getattr(f, name)
-                    run_series[name].append(np.diagonal(value) if name == "R_used" else value)
-        except (EstimationError, np.linalg.LinAlgError, FloatingPointError):
-            failed[r] = True
-            X[r], PP[r] = np.nan, np.nan
-        for name in diag_names:
-            vals = run_series[name]
-            arr = np.full((K, meas.m) if name == "R_used" else (K,), np.nan)
-            if vals:
-                arr[: len(vals)] = vals
-            series[name].append(arr)
-    return FilterRun(kind, X, PP, failed, {k: np.array(v) for k, v in series.items()})
+    return monte_carlo(kind, lambda r: make_filter(kind, motion, meas, x0s[r], P0, **options),
+                       Z, dt, record=_DIAGNOSTICS.get(kind))
 
 
 # ----------------------------------------------------------------------------- bounds
 
 
 def pcrlb_variance(truth: np.ndarray, sensors: np.ndarray, sigma: float | np.ndarray,
-                   q: float = Q_TRUE) -> np.ndarray:
+                   q: float = Q_TRUE, dt: float = DT, P0: np.ndarray = P0) -> np.ndarray:
     """Position part of the PCRLB, [J_k^-1]_xx + [J_k^-1]_yy per step (K,) (SEEDS 7.2).
 
     One information recursion for the Wiener-velocity model with spectral density q and the
@@ -327,36 +304,24 @@ def pcrlb_variance(truth: np.ndarray, sensors: np.ndarray, sigma: float | np.nda
             acc += H.T @ H
         info[k] = acc / runs / sig[k] ** 2
     model = WienerVelocity(q)
-    bound = pcrlb_linear(model.transition(DT), model.Q(DT), P0, info)
+    bound = pcrlb_linear(model.transition(dt), model.Q(dt), P0, info)
     return bound[:, 0, 0] + bound[:, 1, 1]
 
 
 # ---------------------------------------------------------------------------- metrics
 
 
-def squared_position_error(run: FilterRun, truth: np.ndarray) -> np.ndarray:
+def squared_position_error(run: MonteCarloRun, truth: np.ndarray) -> np.ndarray:
     """Delta x^2 + Delta y^2 per run and step (runs, K); NaN for failed runs."""
-    d = run.x[..., :2] - truth[..., :2]
-    return np.sum(d * d, axis=-1)
+    return squared_error(run.x, truth, slice(0, 2))
 
 
-def per_run_rmse(run: FilterRun, truth: np.ndarray) -> np.ndarray:
+def per_run_rmse(run: MonteCarloRun, truth: np.ndarray) -> np.ndarray:
     """sqrt(mean_k (Delta x_k^2 + Delta y_k^2)) of each run (SEEDS 1.7), NaN if failed."""
-    return np.sqrt(np.mean(squared_position_error(run, truth), axis=1))
+    return run_rmse(squared_position_error(run, truth))
 
 
-def nees_series(run: FilterRun, truth: np.ndarray) -> np.ndarray:
-    """NEES e' P^-1 e of the full state per run and step (runs, K)."""
-    out = np.full(truth.shape[:2], np.nan)
-    for r in np.flatnonzero(~run.failed):
-        try:
-            out[r] = nees(truth[r] - run.x[r], run.P[r])
-        except np.linalg.LinAlgError:   # a singular posterior covariance: no NEES for the run
-            pass
-    return out
-
-
-def summarize(run: FilterRun, truth: np.ndarray, bound_var: np.ndarray | None,
+def summarize(run: MonteCarloRun, truth: np.ndarray, bound_var: np.ndarray | None,
               paper_rmse: float | None = None) -> dict[str, float | int | None]:
     """The JSON entry of one filter (INTERFACE.md `vtrack experiment`; SEEDS 1.7, 7.2, 7.3).
 
@@ -371,10 +336,10 @@ def summarize(run: FilterRun, truth: np.ndarray, bound_var: np.ndarray | None,
     NEES lies in the two-sided 95% chi2 band."""
     se = squared_position_error(run, truth)
     ok = ~run.failed & np.all(np.isfinite(se), axis=1)
-    rr = np.sqrt(np.mean(se[ok], axis=1))
+    rr = run_rmse(se[ok])
     median = float(np.median(rr)) if ok.any() else float("nan")
     out: dict[str, float | int | None] = {
-        "rmse": float(np.sqrt(np.mean(se[ok]))) if ok.any() else float("nan"),
+        "rmse": rmse(se[ok]) if ok.any() else float("nan"),
         "rmse_mean_of_runs": float(np.mean(rr)) if ok.any() else float("nan"),
         "rmse_mean_of_runs_se": float(np.std(rr, ddof=1) / np.sqrt(len(rr)))
         if len(rr) > 1 else float("nan"),
@@ -404,7 +369,7 @@ def summarize(run: FilterRun, truth: np.ndarray, bound_var: np.ndarray | None,
     return out
 
 
-def per_step_rmse(run: FilterRun, truth: np.ndarray) -> np.ndarray:
+def per_step_rmse(run: MonteCarloRun, truth: np.ndarray) -> np.ndarray:
     """sqrt(mean over (finite) runs of the squared position error) per step (K,)."""
     se = squared_position_error(run, truth)
     se = se[np.all(np.isfinite(se), axis=1)]
@@ -434,9 +399,10 @@ class Scenario:
     """One seed-000 set-up: geometry, truth generator and the filter's (maybe wrong) model.
 
     truth "turn" is the toolbox's turning path (the filter starts at the fixed prior mean M0);
-    "wiener" is the model-matched truth (Wiener velocity with q_true) with a randomised prior
-    mean per run. q_true and sigma_true (a number or one value per step) also define the PCRLB;
-    q_filter and sigma_filter are what the filters assume."""
+    "wiener" is the model-matched truth (Wiener velocity with q_true from x0_true, `steps`
+    steps of dt) with a randomised prior mean per run, m0 ~ N(x0_true, prior_cov). q_true and
+    sigma_true (a number or one value per step) also define the PCRLB; q_filter,
+    sigma_filter and prior_cov are what the filters assume."""
 
     sensors: np.ndarray
     truth: str = "turn"
@@ -444,6 +410,14 @@ class Scenario:
     q_filter: float = Q_TRUE
     sigma_true: float | np.ndarray = SIGMA_W
     sigma_filter: float = SIGMA_W
+    dt: float = DT
+    steps: int = STEPS
+    x0_true: np.ndarray = field(default_factory=X0_TRUE.copy)
+    prior_cov: np.ndarray = field(default_factory=P0.copy)
+
+    def __post_init__(self) -> None:
+        if self.truth == "turn" and (self.dt, self.steps) != (DT, STEPS):
+            raise ValueError("the toolbox's turning path has dt = 0.01 and 500 steps")
 
     def parameters(self) -> dict[str, object]:
         """The scenario's parameters for the JSON."""
@@ -460,14 +434,15 @@ class Scenario:
                               "propagation, turn-rate noise 0.01 N(0,1), x0 = [0, 0, 1, 0]; "
                               "filter prior mean m0 = [0, 0, 0, 0]",
                       "wiener": "model-matched: Wiener velocity with the true sigma_v^2 from "
-                                "x0 = [0, 0, 1, 0]; filter prior mean m0 ~ N(x0, P0) per run"
+                                f"x0 = [{', '.join(f'{v:g}' for v in self.x0_true)}]; filter "
+                                "prior mean m0 ~ N(x0, P0) per run"
                       }[self.truth],
-            "dt": DT, "steps": STEPS,
+            "dt": self.dt, "steps": self.steps,
             "sigma_v2_true": self.q_true if self.truth == "wiener" else None,
             "sigma_v2_filter": self.q_filter,
             "sigma_w_true": sigma_true,
             "sigma_w_filter": self.sigma_filter,
-            "P0_diag": np.diag(P0).tolist(),
+            "P0_diag": np.diag(self.prior_cov).tolist(),
         }
 
 
@@ -481,7 +456,7 @@ class CaseRun:
     Z: np.ndarray
     x0s: np.ndarray
     bound_var: np.ndarray
-    runs: dict[str, FilterRun]
+    runs: dict[str, MonteCarloRun]
     options: dict[str, dict[str, object]]
 
 
@@ -493,15 +468,18 @@ def simulate(scenario: Scenario, seeds: list[int],
         truth = turning_truth(seeds)
         x0s = np.broadcast_to(M0, (len(seeds), 4)).copy()
     elif scenario.truth == "wiener":
-        truth = wiener_truth(seeds, scenario.q_true)
-        x0s = randomised_priors(seeds)
+        truth = wiener_truth(seeds, scenario.q_true, scenario.dt, scenario.steps,
+                             scenario.x0_true)
+        x0s = randomised_priors(seeds, scenario.x0_true, scenario.prior_cov)
     else:
         raise ValueError(f"unknown truth {scenario.truth!r}")
     Z = measure(truth, scenario.sensors, scenario.sigma_true, seeds)
-    bound_var = pcrlb_variance(truth, scenario.sensors, scenario.sigma_true, scenario.q_true)
+    bound_var = pcrlb_variance(truth, scenario.sensors, scenario.sigma_true, scenario.q_true,
+                               scenario.dt, scenario.prior_cov)
     motion = CachedWienerVelocity(scenario.q_filter)
     meas = Bearings(scenario.sensors, scenario.sigma_filter)
-    runs = {kind: run_filter(kind, motion, meas, Z, x0s, P0, **opts)
+    runs = {kind: run_filter(kind, motion, meas, Z, x0s, scenario.prior_cov, dt=scenario.dt,
+                             **opts)
             for kind, opts in filters.items()}
     return CaseRun(scenario, seeds, truth, Z, x0s, bound_var, runs, dict(filters))
 
@@ -512,7 +490,7 @@ def case_results(case: CaseRun, paper: dict[str, float] | None = None
     diagnostics (mean adapted R per half of the run, mean fading factor)."""
     paper = paper or {}
     out: dict[str, dict[str, object]] = {}
-    half = STEPS // 2
+    half = case.scenario.steps // 2
     for kind, run in case.runs.items():
         entry = summarize(run, case.truth, case.bound_var, paper.get(kind))
         if case.options.get(kind):
@@ -553,7 +531,7 @@ def example_run(case: CaseRun, r: int = 0) -> ExampleRun:
         for name, series in run.series.items():
             extra[f"{name}/{kind}"] = series[r]
     return ExampleRun(
-        times=DT * np.arange(1, STEPS + 1),
+        times=case.scenario.dt * np.arange(1, case.scenario.steps + 1),
         truth=case.truth[r],
         estimates={k: v.x[r] for k, v in case.runs.items()},
         covariances={k: v.P[r] for k, v in case.runs.items()},

@@ -1,14 +1,14 @@
 """Adaptive EKF kinds of seed 000: ANKF1 (innovation-based adaptive estimation, IAE) and ANKF2
 (adaptive fading with measurement-noise scaling, AFKF).
 
-Registered into vtrack.estimation.filters.FILTER_KINDS on import (`make_filter("ankf1", ...)`,
-`make_filter("ankf2", ...)`, `[filter] kind = "ankf1"` in `vtrack filter`).
+Registered into the core's registry (vtrack.estimation.registry) on import
+(`vtrack.filter_kinds.make_filter("ankf1", ...)`, `[filter] kind = "ankf1"` in `vtrack filter`).
 
 The seed (Khadour et al. 2019) takes both from Jwo & Weng (2008) but its flowcharts are lost;
 this is the reconstruction of SEEDS.md section 2.4 [A], from Mohamed & Schwarz (1999, IAE)
 and Xia et al. (1994, fading factors). Both filters are the core EKF
-(vtrack.estimation.filters.ExtendedKalmanFilter) whose update is done by the core
-`kalman.kf_update` (Joseph form) with an adapted R (and, for ANKF2, a faded prior P-).
+(vtrack.estimation.filters.ExtendedKalmanFilter: its prediction, and the core
+`kalman.kf_update` (Joseph form) with an adapted R and, for ANKF2, a faded prior P-).
 
 Common part (SEEDS 1.6): every wrapped innovation nu_k = wrap(z_k - h(m-)) of a step with a
 FULL measurement vector is pushed into a ring buffer of the last N innovations, and
@@ -29,13 +29,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from vtrack.estimation.filters import ExtendedKalmanFilter, register
-from vtrack.estimation.kalman import Innovation, kf_predict, kf_update
+from vtrack.adaptive.innovation_windows import InnovationCovarianceWindow
+from vtrack.estimation.filters import ExtendedKalmanFilter
+from vtrack.estimation.kalman import Innovation, kf_update
 from vtrack.estimation.linalg import symmetrize
 from vtrack.estimation.models import MeasurementModel, MotionModel
+from vtrack.estimation.options import bool_option, float_option, int_option
+from vtrack.estimation.registry import register
 
 __all__ = [
-    "InnovationWindow",
     "iae_measurement_noise",
     "fading_factors",
     "scale_noise",
@@ -47,38 +49,6 @@ __all__ = [
 
 
 # ------------------------------------------------------------------------------ pieces
-
-
-class InnovationWindow:
-    """Ring buffer of the last `size` innovations (SEEDS 1.6).
-
-    `covariance()` is C_hat = (1/N) sum nu nu' over the buffer (no mean removal). `shape` is
-    the shape of one innovation, (m,) for one filter or (..., m) for a stack of filters.
-    """
-
-    def __init__(self, size: int, shape: int | tuple[int, ...]) -> None:
-        if size < 1:
-            raise ValueError(f"innovation window size must be >= 1 (got {size})")
-        shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
-        self.size = int(size)
-        self._buf = np.zeros((self.size,) + shape)
-        self.count = 0                     # innovations pushed so far (not capped)
-
-    @property
-    def full(self) -> bool:
-        """True once `size` innovations have been pushed."""
-        return self.count >= self.size
-
-    def push(self, nu: np.ndarray) -> None:
-        """Store one innovation, overwriting the oldest once the buffer is full."""
-        self._buf[self.count % self.size] = nu
-        self.count += 1
-
-    def covariance(self) -> np.ndarray:
-        """C_hat = (1/N) sum_j nu_j nu_j' over the stored innovations (only when full)."""
-        if not self.full:
-            raise ValueError("innovation window is not full yet")
-        return np.einsum("k...i,k...j->...ij", self._buf, self._buf) / self.size
 
 
 def iae_measurement_noise(C_hat: np.ndarray, HPH: np.ndarray, R_nom: np.ndarray,
@@ -129,7 +99,7 @@ def _diag_embed(d: np.ndarray) -> np.ndarray:
 
 
 def ankf1_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray,
-                 R_nom: np.ndarray, window: InnovationWindow, r_floor: float, adapt_r: bool,
+                 R_nom: np.ndarray, window: InnovationCovarianceWindow, r_floor: float, adapt_r: bool,
                  adapt_q: bool, R_hat: np.ndarray | None
                  ) -> tuple[np.ndarray, np.ndarray, Innovation, np.ndarray,
                             np.ndarray | None, np.ndarray | None]:
@@ -154,7 +124,7 @@ def ankf1_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray,
 
 
 def ankf2_update(x: np.ndarray, Pprop: np.ndarray, Q: np.ndarray, nu: np.ndarray,
-                 H: np.ndarray, R_nom: np.ndarray, window: InnovationWindow,
+                 H: np.ndarray, R_nom: np.ndarray, window: InnovationCovarianceWindow,
                  lambda_max: float, ratio_min: float, ratio_max: float, multiple: bool,
                  fade_prior: bool, lambda_R: np.ndarray | None
                  ) -> tuple[np.ndarray, np.ndarray, Innovation, np.ndarray, np.ndarray,
@@ -178,34 +148,6 @@ def ankf2_update(x: np.ndarray, Pprop: np.ndarray, Q: np.ndarray, nu: np.ndarray
     R = R_nom if lambda_R is None else scale_noise(R_nom, lambda_R)
     x, P, info = kf_update(x, P_prior, nu, H, R)
     return x, P, info, R, lam_P, lambda_R
-
-
-def _int_option(name: str, value: object, lo: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not float(value).is_integer() or value < lo:
-        raise ValueError(f"option {name} must be an integer >= {lo} (got {value!r})")
-    return int(value)
-
-
-def _float_option(name: str, value: object, lo: float, strict: bool = True) -> float:
-    ok = (not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
-          and np.isfinite(value) and (value > lo if strict else value >= lo))
-    if not ok:
-        raise ValueError(f"option {name} must be a number {'>' if strict else '>='} {lo:g} "
-                         f"(got {value!r})")
-    return float(value)
-
-
-def _bool_option(name: str, value: object) -> bool:
-    if isinstance(value, (bool, np.bool_)) or value in (0, 1):
-        return bool(value)
-    raise ValueError(f"option {name} must be true or false (got {value!r})")
-
-
-def _rows(meas: MeasurementModel, full: MeasurementModel) -> np.ndarray:
-    """Indices of the rows of the full measurement vector that `meas` (maybe a subset) holds."""
-    rows = getattr(meas, "rows", None)
-    return np.arange(full.m) if rows is None else np.asarray(rows)
 
 
 # ------------------------------------------------------------------------------ ANKF1
@@ -238,38 +180,38 @@ class InnovationAdaptiveEKF(ExtendedKalmanFilter):
                  P0: np.ndarray, window: int = 20, r_floor: float = 0.01,
                  adapt_r: bool = True, adapt_q: bool = False) -> None:
         super().__init__(motion, measurement, x0, P0)
-        self.window = InnovationWindow(_int_option("window", window, 1), measurement.m)
-        self.r_floor = _float_option("r_floor", r_floor, 0.0)
-        self.adapt_r = _bool_option("adapt_r", adapt_r)
-        self.adapt_q = _bool_option("adapt_q", adapt_q)
+        self.window = InnovationCovarianceWindow(int_option("window", window, 1), measurement.m)
+        self.r_floor = float_option("r_floor", r_floor, 0.0)
+        self.adapt_r = bool_option("adapt_r", adapt_r)
+        self.adapt_q = bool_option("adapt_q", adapt_q)
         self.R_hat: np.ndarray | None = None
         self.Q_hat: np.ndarray | None = None
         self.R_used: np.ndarray = measurement.R.copy()
         self.adapted = False
 
-    def predict(self, dt: float, u: np.ndarray | None = None) -> None:
-        """EKF prediction; with adapt_q the latest Q_hat replaces the model Q."""
-        Q = self.motion.Q(dt) if self.Q_hat is None else self.Q_hat
-        F = self.motion.F(self.x, dt, u)
-        self.x, self.P = kf_predict(self.x, self.P, F, Q, fx=self.motion.f(self.x, dt, u))
+    def process_noise(self, dt: float) -> np.ndarray:
+        """With adapt_q the latest Q_hat replaces the model Q."""
+        return self.motion.Q(dt) if self.Q_hat is None else self.Q_hat
+
+    def measurement_noise(self, meas: MeasurementModel) -> np.ndarray:
+        """The latest R_hat on the rows of `meas` (R_nom before the first estimate): what a
+        step with only some cells present is updated with."""
+        if self.adapt_r and self.R_hat is not None:
+            return np.diag(self.R_hat[meas.row_indices()])
+        return meas.R
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
-        H = meas.H(self.x)
+        if meas.m < self.measurement.m:           # partial vector: last R_hat, no window
+            self.R_used, self.adapted = self.measurement_noise(meas), False
+            return super()._update(meas, z)
+        H = meas.H(self.x)                        # full vector: the window step
         nu = meas.residual(z, meas.h(self.x))
-        if meas.m == self.measurement.m:          # full vector: the window step
-            self.x, self.P, info, self.R_used, self.R_hat, Q_hat = ankf1_update(
-                self.x, self.P, nu, H, meas.R, self.window, self.r_floor, self.adapt_r,
-                self.adapt_q, self.R_hat)
-            self.adapted = self.window.full
-            if Q_hat is not None:
-                self.Q_hat = Q_hat
-            return info
-        R = meas.R                                # partial vector: last R_hat, no window
-        if self.adapt_r and self.R_hat is not None:
-            R = np.diag(self.R_hat[_rows(meas, self.measurement)])
-        self.x, self.P, info = kf_update(self.x, self.P, nu, H, R)
-        self.R_used = R
-        self.adapted = False
+        self.x, self.P, info, self.R_used, self.R_hat, Q_hat = ankf1_update(
+            self.x, self.P, nu, H, meas.R, self.window, self.r_floor, self.adapt_r,
+            self.adapt_q, self.R_hat)
+        self.adapted = self.window.full
+        if Q_hat is not None:
+            self.Q_hat = Q_hat
         return info
 
 
@@ -312,12 +254,12 @@ class FadingAdaptiveEKF(ExtendedKalmanFilter):
                  ratio_min: float = 0.01, ratio_max: float = 100.0,
                  multiple_factors: bool = False, fade_prior: bool = False) -> None:
         super().__init__(motion, measurement, x0, P0)
-        self.window = InnovationWindow(_int_option("window", window, 1), measurement.m)
-        self.lambda_max = _float_option("lambda_max", lambda_max, 1.0, strict=False)
-        self.ratio_min = _float_option("ratio_min", ratio_min, 0.0)
-        self.ratio_max = _float_option("ratio_max", ratio_max, self.ratio_min, strict=False)
-        self.multiple_factors = _bool_option("multiple_factors", multiple_factors)
-        self.fade_prior = _bool_option("fade_prior", fade_prior)
+        self.window = InnovationCovarianceWindow(int_option("window", window, 1), measurement.m)
+        self.lambda_max = float_option("lambda_max", lambda_max, 1.0, strict=False)
+        self.ratio_min = float_option("ratio_min", ratio_min, 0.0)
+        self.ratio_max = float_option("ratio_max", ratio_max, self.ratio_min, strict=False)
+        self.multiple_factors = bool_option("multiple_factors", multiple_factors)
+        self.fade_prior = bool_option("fade_prior", fade_prior)
         self._Pprop: np.ndarray | None = None
         self._Q: np.ndarray | None = None
         self.lambda_P = 1.0
@@ -325,34 +267,40 @@ class FadingAdaptiveEKF(ExtendedKalmanFilter):
         self.R_used: np.ndarray = measurement.R.copy()
         self.adapted = False
 
+    def process_noise(self, dt: float) -> np.ndarray:
+        """Zero: the EKF prediction gives the propagated part Pprop = F P F'; `predict` adds
+        Q afterwards and keeps both for the fading."""
+        return np.zeros((self.motion.n, self.motion.n))
+
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
-        """EKF prediction that remembers Pprop = F P F' and Q separately (P- = Pprop + Q)."""
-        F = self.motion.F(self.x, dt, u)
-        Q = self.motion.Q(dt)
-        self.x, Pprop = kf_predict(self.x, self.P, F, np.zeros_like(Q),
-                                   fx=self.motion.f(self.x, dt, u))
-        self._Pprop, self._Q = Pprop, Q
-        self.P = symmetrize(Pprop + Q)
+        """The EKF prediction of Pprop = F P F', then P- = Pprop + Q (both remembered)."""
+        super().predict(dt, u)
+        self._Pprop, self._Q = self.P, self.motion.Q(dt)
+        self.P = symmetrize(self._Pprop + self._Q)
+
+    def measurement_noise(self, meas: MeasurementModel) -> np.ndarray:
+        """R_nom scaled by the latest lambda_R on the rows of `meas` (what a step with only
+        some cells present is updated with)."""
+        if self.lambda_R is None:
+            return meas.R
+        return scale_noise(meas.R, self.lambda_R[meas.row_indices()])
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
-        H = meas.H(self.x)
-        nu = meas.residual(z, meas.h(self.x))
-        if meas.m == self.measurement.m:          # full vector: the window step
+        if meas.m < self.measurement.m:           # partial vector: last lambda_R, no fading
+            self.R_used, self.lambda_P, self.adapted = self.measurement_noise(meas), 1.0, False
+            info = super()._update(meas, z)
+        else:                                     # full vector: the window step
             if self._Pprop is None:               # no prediction since the last update:
                 Pprop, Q, lam_max = self.P, np.zeros_like(self.P), 1.0   # nothing to fade
             else:
                 Pprop, Q, lam_max = self._Pprop, self._Q, self.lambda_max
+            H = meas.H(self.x)
+            nu = meas.residual(z, meas.h(self.x))
             self.x, self.P, info, self.R_used, lam_P, self.lambda_R = ankf2_update(
                 self.x, Pprop, Q, nu, H, meas.R, self.window, lam_max, self.ratio_min,
                 self.ratio_max, self.multiple_factors, self.fade_prior, self.lambda_R)
             self.lambda_P = float(lam_P)
             self.adapted = self.window.full
-        else:                                     # partial vector: last lambda_R, no fading
-            R = meas.R
-            if self.lambda_R is not None:
-                R = scale_noise(meas.R, self.lambda_R[_rows(meas, self.measurement)])
-            self.x, self.P, info = kf_update(self.x, self.P, nu, H, R)
-            self.R_used, self.lambda_P, self.adapted = R, 1.0, False
         self._Pprop = None     # fading applies once per prediction
         return info
 

@@ -2,7 +2,7 @@
 corrected), attitude from accelerometer + magnetometer (eqs. 36-37, standard form), and the
 linear error model of the error-state Kalman filter (eqs. 28-35).
 
-Frames: ENU navigation frame, FLU body frame, R = R_b^n (see vtrack.estimation.so3).
+Frames: ENU navigation frame, FLU body frame, R = R_b^n (see vtrack.ins.so3).
 Error state (estimate minus truth for navigation, residual sensor error for biases):
 
     dx = [dr (3), dv (3), eps (3) | dba (3), dbg (3) | dbm (3)]
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.estimation.so3 import dcm_to_euler, euler_rate_matrix, exp_so3, log_so3, skew
+from vtrack.ins.so3 import dcm_to_euler, euler_rate_matrix, exp_so3, log_so3, skew
 
 G0 = 9.80665
 GRAVITY_N = np.array([0.0, 0.0, -G0])       # g^n of eq. 27 (ENU, z up)

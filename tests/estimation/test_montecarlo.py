@@ -1,0 +1,89 @@
+"""The Monte Carlo harness (vtrack.estimation.montecarlo): one filter over a sequence, over a
+Monte Carlo set with failing runs, and the NIS test of one run."""
+
+import numpy as np
+import pytest
+
+from vtrack.estimation.bounds import chi2_band
+from vtrack.estimation.models import Bearings, WienerVelocity
+from vtrack.estimation.montecarlo import (
+    StepError,
+    monte_carlo,
+    nis_consistency,
+    run_rmse,
+    run_sequence,
+    squared_error,
+)
+from vtrack.filter_kinds import make_filter
+
+SENSORS = np.array([[1.0, -2.0], [1.0, 2.0]])
+X0, P0 = np.array([0.0, 0.0, 1.0, 0.0]), np.diag([0.1, 0.1, 1.0, 1.0])
+
+
+def _filter(kind="ekf"):
+    return make_filter(kind, WienerVelocity(0.1), Bearings(SENSORS, 0.05), X0, P0)
+
+
+def _log(K=40, seed=0):
+    rng = np.random.default_rng(seed)
+    z = np.stack([np.linspace(1.9, 1.5, K), np.linspace(-1.9, -1.5, K)], axis=1)
+    z = z + 0.05 * rng.normal(size=z.shape)
+    z[5, 0] = np.nan
+    z[9] = np.nan
+    return z
+
+
+@pytest.mark.parametrize("kind", ["ekf", "iekf", "ukf", "iplf"])
+def test_run_sequence_is_the_filter_stepped_by_hand(kind):
+    z, dts = _log(), np.linspace(0.01, 0.03, 40)
+    out = run_sequence(_filter(kind), z, dts, record={"trace": lambda f: np.trace(f.P)})
+    f = _filter(kind)
+    np.testing.assert_array_equal(out.x0, f.x)
+    for k in range(40):
+        info = f.step(float(dts[k]), z[k])
+        np.testing.assert_array_equal(out.x[k], f.x)
+        np.testing.assert_array_equal(out.P[k], f.P)
+        assert out.series["trace"][k] == np.trace(f.P)
+        if info is None:
+            assert np.isnan(out.nis[k]) and out.nis_dof[k] == 0
+        else:
+            assert out.nis[k] == float(info.nis) and out.nis_dof[k] == len(info.nu)
+    assert out.nis_dof[5] == 1 and out.nis_dof[9] == 0
+
+
+def test_run_sequence_names_the_failing_step():
+    z = _log()
+    z[17, 1] = np.inf
+    with pytest.raises(StepError, match="step 17") as err:
+        run_sequence(_filter(), z, 0.01)
+    assert err.value.step == 17
+
+
+def test_monte_carlo_marks_failed_runs_and_leaves_the_others_alone():
+    Z = np.stack([_log(seed=s) for s in range(4)])
+    Z[2, 11, 0] = np.inf
+    run = monte_carlo("ekf", lambda r: _filter(), Z, 0.01)
+    assert run.failed.tolist() == [False, False, True, False]
+    assert np.isnan(run.x[2]).all() and np.isnan(run.P[2]).all()
+    for r in (0, 1, 3):
+        np.testing.assert_array_equal(run.x[r], run_sequence(_filter(), Z[r], 0.01).x)
+    truth = np.zeros_like(run.x)
+    rr = run_rmse(squared_error(run.x, truth, slice(0, 2)))
+    assert np.isnan(rr[2]) and np.all(np.isfinite(rr[[0, 1, 3]]))
+    xs, Ps = run.with_prior(0)
+    assert xs.shape == (41, 4) and np.array_equal(xs[0], X0) and np.array_equal(Ps[1:], run.P[0])
+
+
+def test_nis_consistency():
+    """chi2(dof) samples pass (sum / sum dof inside chi2_band(1, sum dof)), twice them fail;
+    steps without an update (dof 0) are ignored."""
+    rng = np.random.default_rng(1)
+    dof = rng.integers(0, 3, 500)
+    nis = np.where(dof > 0, rng.chisquare(np.maximum(dof, 1)), np.nan)
+    ok = nis_consistency(nis, dof)
+    assert ok["updates"] == int((dof > 0).sum()) and ok["nis_dof_sum"] == int(dof.sum())
+    assert ok["nis_per_dof_band"] == pytest.approx(list(chi2_band(1, int(dof.sum()))))
+    assert ok["nis_consistent"] is True and 0.0 < ok["nis_fraction_above_upper"] < 0.06
+    assert nis_consistency(2 * nis, dof)["nis_consistent"] is False
+    none = nis_consistency(np.full(3, np.nan), np.zeros(3, dtype=int))
+    assert none["updates"] == 0 and none["nis_per_dof"] is None

@@ -1,0 +1,258 @@
+"""Sigma-point filters: UKF and CKF share one step and differ only in their SigmaPointRule;
+the iterated posterior linearisation filter (IPLF) iterates that update; the square-root UKF
+and seed 002's cube-root variant share one square-root step and differ only in the root.
+Missing measurement cells are NaN (GaussianFilter.update).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from vtrack.estimation.filters import (
+    MAX_ITERATIONS,
+    TOLERANCE,
+    GaussianFilter,
+    Linearisation,
+    iterated_update,
+    iteration_options,
+)
+from vtrack.estimation.kalman import Innovation
+from vtrack.estimation.linalg import (
+    DowndateError,
+    NotPositiveDefiniteError,
+    cholesky,
+    cholupdate,
+    spd_root,
+    symmetrize,
+    tria,
+)
+from vtrack.estimation.models import MeasurementModel, MotionModel
+from vtrack.estimation.sigma_points import SigmaPointRule
+
+
+def weighted_mean(Y: np.ndarray, Wm: np.ndarray, ref: np.ndarray,
+                  residual: Callable[[np.ndarray, np.ndarray], np.ndarray]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Sigma-point mean taken relative to a reference, ybar = ref + sum Wm_i r(Y_i, ref), and the
+    deviations r(Y_i, ybar). With wrapped residuals this averages angles across +-pi (SEEDS 1.4)."""
+    mean = ref + Wm @ residual(Y, ref)
+    return mean, residual(Y, mean)
+
+
+class SigmaPointKalmanFilter(GaussianFilter):
+    """UKF (seed 000 eqs. 10-13) or CKF (eqs. 14-24), depending on the rule.
+
+    Additive noise: P- = sum Wc dX dX' + Q; update S = sum Wc dY dY' + R, Pxy = sum Wc dX dY',
+    K = Pxy S^-1, P = P- - K S K'."""
+
+    def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
+                 P0: np.ndarray, rule: SigmaPointRule, kind: str = "ukf") -> None:
+        super().__init__(motion, measurement, x0, P0)
+        self.rule = rule
+        self.kind = kind
+
+    def predict(self, dt: float, u: np.ndarray | None = None) -> None:
+        X = self.rule.points(self.x, cholesky(self.P, "state covariance"))
+        Xp = self.motion.f(X, dt, u)
+        ref = self.motion.f(self.x, dt, u)
+        self.x, dX = weighted_mean(Xp, self.rule.Wm, ref, self.motion.residual)
+        self.P = symmetrize((dX.T * self.rule.Wc) @ dX + self.motion.Q(dt))
+
+    def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
+        ybar, Pxy, Pyy = sigma_moments(self.rule, self.motion, meas, self.x, self.P)
+        S = symmetrize(Pyy + meas.R)
+        L = cholesky(S, "innovation covariance S")
+        # K = Pxy S^-1 through the factor. numpy's solve, not scipy's solve_triangular: the
+        # latter can take milliseconds per tiny call under a multi-threaded OpenBLAS.
+        K = np.linalg.solve(L.T, np.linalg.solve(L, Pxy.T)).T
+        nu = meas.residual(z, ybar)
+        self.x = self.x + K @ nu
+        self.P = symmetrize(self.P - K @ S @ K.T)
+        w = np.linalg.solve(L, nu)
+        return Innovation(nu=nu, S=S, K=K, nis=np.asarray(w @ w))
+
+
+def sigma_moments(rule: SigmaPointRule, motion: MotionModel, meas: MeasurementModel,
+                  m: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sigma-point moments of y = h(x) for x ~ N(m, P) (SEEDS 1.3): X_i = points(m, chol P),
+    ybar = weighted_mean(h(X_i)), Pxy = sum Wc (X_i - m)(Y_i - ybar)',
+    Pyy = sum Wc (Y_i - ybar)(Y_i - ybar)' (residuals wrapped for angles)."""
+    X = rule.points(m, cholesky(P, "covariance of the sigma points"))
+    ybar, dY = weighted_mean(meas.h(X), rule.Wm, meas.h(m), meas.residual)
+    dX = motion.residual(X, m)
+    return ybar, (dX.T * rule.Wc) @ dY, (dY.T * rule.Wc) @ dY
+
+
+def statistical_linear_regression(rule: SigmaPointRule, motion: MotionModel,
+                                  meas: MeasurementModel, m: np.ndarray, P: np.ndarray
+                                  ) -> Linearisation:
+    """Statistical linear regression of h with respect to N(m, P) (Garcia-Fernandez et al. 2015):
+
+        A = Pxy' P^-1,   h(x) ~ ybar + A (x - m),   Omega = Pyy - A P A'
+
+    with the sigma-point moments (sigma_moments). Omega, the covariance of the linearisation
+    error, is positive semidefinite for a rule with non-negative weights; a negative centre
+    weight (the unscented rule with kappa < 0) can make it indefinite, and then its negative
+    eigenvalues are set to zero."""
+    ybar, Pxy, Pyy = sigma_moments(rule, motion, meas, m, P)
+    A = np.linalg.solve(P, Pxy).T
+    Omega = symmetrize(Pyy - A @ P @ A.T)
+    d, U = np.linalg.eigh(Omega)
+    if d.min() < 0.0:
+        Omega = (U * np.maximum(d, 0.0)) @ U.T
+    return A, ybar, Omega
+
+
+class IteratedPosteriorLinearisationFilter(SigmaPointKalmanFilter):
+    """Iterated posterior linearisation filter, IPLF (Garcia-Fernandez, Svensson, Morelande
+    & Sarkka 2015, "Posterior linearization filter: principles and implementation using
+    sigma points", IEEE Trans. Signal Processing 63(20)).
+
+    Prediction: the sigma-point prediction (the SLR of f about the posterior). Update:
+    filters.iterated_update with the statistical linear regression of h about the CURRENT
+    POSTERIOR N(m_i, P_i) (statistical_linear_regression: A_i, ybar_i, Omega_i), the prior
+    updated with z = A_i x + b_i + e, e ~ N(0, R + Omega_i). The first iteration, about the
+    prior, is the UKF/CKF update; later ones linearise where the posterior mass is.
+    `iterations` holds the count of the last update.
+
+    Options: rule ("cubature", the default, or "unscented" with alpha, beta, kappa),
+    max_iterations (default 30), tolerance (default 1e-4 posterior standard deviations).
+    """
+
+    def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
+                 P0: np.ndarray, rule: SigmaPointRule, max_iterations: int = MAX_ITERATIONS,
+                 tolerance: float = TOLERANCE) -> None:
+        super().__init__(motion, measurement, x0, P0, rule, "iplf")
+        self.max_iterations, self.tolerance = iteration_options(max_iterations, tolerance)
+        self.iterations = 0
+
+    def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
+        def linearise(m: np.ndarray, P: np.ndarray) -> Linearisation:
+            return statistical_linear_regression(self.rule, self.motion, meas, m, P)
+
+        self.x, self.P, info, self.iterations = iterated_update(
+            self.motion, meas, self.x, self.P, z, meas.R, linearise, self.max_iterations,
+            self.tolerance)
+        return info
+
+
+@dataclass
+class _Root:
+    """Matrix 'square root' of order p: Cholesky for p = 2, principal cube root for p = 3."""
+
+    p: int
+
+    def of(self, M: np.ndarray, what: str) -> np.ndarray:
+        if self.p == 2:
+            try:
+                return cholesky(M, what)
+            except NotPositiveDefiniteError:  # a PSD (singular) Q: any factor works for tria
+                d, U = np.linalg.eigh(symmetrize(M))
+                return U * np.sqrt(np.clip(d, 0.0, None))
+        try:
+            return spd_root(M, 1.0 / self.p)
+        except NotPositiveDefiniteError:  # a PSD (singular) Q or R, as for p = 2 above
+            d, U = np.linalg.eigh(symmetrize(M))
+            return (U * np.clip(d, 0.0, None) ** (1.0 / self.p)) @ U.T
+
+    def weight(self, w: float) -> float:
+        return float(w) ** (1.0 / self.p)
+
+
+class SquareRootUKF(GaussianFilter):
+    """Square-root UKF (van der Merwe & Wan 2001; SEEDS 1.5): the factor S (P = S S') is
+    propagated by QR ('tria') and rank-1 Cholesky up/down-dates.
+
+    root=3 gives seed 002's "cubic root UKF" (SEEDS 4.5): cube roots replace the square roots
+    of P0, Q, R, the spread and the QR weights. That variant is the PAPER'S EXPERIMENTAL
+    VARIANT and is mathematically unsound (its factors are mutually inconsistent); it is here
+    to reproduce the paper, not as an improved filter.
+
+    A downdate that fails (very negative Wc0) falls back to the full-covariance step for that
+    factor and is counted in `fallbacks`. If even that matrix is not positive definite, the
+    filter raises NotPositiveDefiniteError, unless `repair` is set: then the matrix is
+    repaired by clipping its eigenvalues at 1e-10 x the largest (SEEDS 1.3) and the event is
+    counted in `repairs` (seed 002's cube-root variant needs it to run at all).
+    """
+
+    repair = False
+
+    def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
+                 P0: np.ndarray, rule: SigmaPointRule, root: int = 2, kind: str = "srukf") -> None:
+        if not rule.center:
+            raise ValueError("the square-root UKF needs an unscented rule")
+        self.rule = rule
+        self.root = _Root(root)
+        self.kind = kind
+        self.fallbacks = 0
+        self.repairs = 0
+        super().__init__(motion, measurement, x0, P0)  # sets S through the P setter
+
+    @property
+    def P(self) -> np.ndarray:  # type: ignore[override]
+        return self.S @ self.S.T
+
+    @P.setter
+    def P(self, value: np.ndarray) -> None:
+        self.S = self.root.of(value, "covariance")
+
+    def _points(self, x: np.ndarray) -> np.ndarray:
+        return self.rule.points(x, self.S, spread=self.rule.c ** (1.0 / self.root.p))
+
+    def _factor(self, dev: np.ndarray, noise_root: np.ndarray) -> np.ndarray:
+        """tria([w1 * dev_1..2n, noise root]) then the rank-1 term of the centre point (Wc0)."""
+        Wc = self.rule.Wc
+        S = tria(np.hstack([self.root.weight(Wc[1]) * dev[1:].T, noise_root]))
+        if Wc[0] == 0.0:
+            return S
+        v = np.sqrt(abs(Wc[0])) * dev[0]
+        try:
+            return cholupdate(S, v, np.sign(Wc[0]))
+        except DowndateError:
+            self.fallbacks += 1
+            return self._full_factor(S @ S.T + np.sign(Wc[0]) * np.outer(v, v),
+                                     "covariance after the Wc0 downdate")
+
+    def _full_factor(self, M: np.ndarray, what: str) -> np.ndarray:
+        """Cholesky factor of the full-covariance fallback, or its repair (see class doc)."""
+        M = symmetrize(M)
+        try:
+            return cholesky(M, what)
+        except NotPositiveDefiniteError:
+            if not self.repair or not np.all(np.isfinite(M)):
+                raise
+            self.repairs += 1
+            d, U = np.linalg.eigh(M)
+            floor = 1e-10 * max(float(d.max()), np.finfo(float).tiny)
+            return tria(U * np.sqrt(np.maximum(d, floor)))
+
+    def predict(self, dt: float, u: np.ndarray | None = None) -> None:
+        Xp = self.motion.f(self._points(self.x), dt, u)
+        self.x, dX = weighted_mean(Xp, self.rule.Wm, self.motion.f(self.x, dt, u),
+                                   self.motion.residual)
+        self.S = self._factor(dX, self.root.of(self.motion.Q(dt), "process noise Q"))
+
+    def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
+        X = self._points(self.x)
+        ybar, dY = weighted_mean(meas.h(X), self.rule.Wm, meas.h(self.x), meas.residual)
+        Sy = self._factor(dY, self.root.of(meas.R, "measurement noise R"))
+        dX = self.motion.residual(X, self.x)
+        Pxy = (dX.T * self.rule.Wc) @ dY
+        # K = Pxy (Sy Sy')^-1 by two triangular solves (SEEDS 1.5).
+        K = np.linalg.solve(Sy.T, np.linalg.solve(Sy, Pxy.T)).T
+        nu = meas.residual(z, ybar)
+        self.x = self.x + K @ nu
+        U = K @ Sy
+        S = self.S
+        try:
+            for j in range(U.shape[1]):
+                S = cholupdate(S, U[:, j], -1.0)
+        except DowndateError:
+            self.fallbacks += 1
+            S = self._full_factor(self.S @ self.S.T - U @ U.T, "updated covariance")
+        self.S = S
+        w = np.linalg.solve(Sy, nu)
+        return Innovation(nu=nu, S=Sy @ Sy.T, K=K, nis=np.asarray(w @ w))
