@@ -179,6 +179,13 @@ class Tracker:
     def __len__(self) -> int:
         return len(self.x)
 
+    @property
+    def max_row_lag(self) -> int:
+        """Rows come out of `step` late (a tentative track's once it is confirmed, coasted
+        ones once the vehicle is re-acquired), but never this many frames late: after
+        `step(g)`, no row of a frame <= g - max_row_lag will come."""
+        return self._MAX_PENDING + 1
+
     def boxes(self) -> np.ndarray:
         """Boxes (x, y, w, h) centred on the filtered positions, clipped to the image."""
         half = self.size / 2
