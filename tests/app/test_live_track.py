@@ -138,13 +138,13 @@ def test_decoder_abort_is_one_error_line_naming_its_log(synth_video, tmp_path):
 
 def test_corrupt_file_keeps_ffmpeg_messages_in_the_log(synth_video, tmp_path):
     data = bytearray((synth_video(0) / "video.avi").read_bytes())
-    middle = len(data) // 2
-    data[middle:middle + 30000] = np.random.default_rng(1).integers(0, 256, 30000,
-                                                                     np.uint8).tobytes()
+    start = len(data) // 4    # around frame 60 of 250
+    data[start:start + 30000] = np.random.default_rng(1).integers(0, 256, 30000,
+                                                                   np.uint8).tobytes()
     video = tmp_path / "corrupt.avi"
     video.write_bytes(data)
     out = tmp_path / "out"
-    result = _vtrack(str(video), "--out", str(out), "--quiet")
+    result = _vtrack(str(video), "--out", str(out), "--quiet", "--max-frames", "90")
     assert result.returncode == 0 and result.stderr == ""
     assert "[OPENCV:FFMPEG:" in (out / "decoder.log").read_text()
     summary, _, _ = _check_outputs(out)
@@ -171,3 +171,26 @@ def test_annotated_video_without_pyav_is_mpeg4_with_one_warning(synth_video, tmp
     monkeypatch.undo()
     got = read_video(tmp_path / "annotated.mp4")
     assert (got["codec"], got["frames"]) == ("mpeg4", 20)
+
+
+def test_truncated_file_is_one_error_line_with_the_decoders_reason(synth_video, tmp_path):
+    """An MP4 cut before its index (moov at the end, as OpenCV writes it): exit 2, stderr
+    exactly one line, FFmpeg's own reason quoted in it, no output folder."""
+    import cv2
+
+    from vtrack.vision.video_writer import OpenCVWriter
+
+    cap = cv2.VideoCapture(str(synth_video(0) / "video.avi"))
+    whole = tmp_path / "whole.mp4"
+    with OpenCVWriter(whole, 25.0, (640, 360)) as writer:
+        for _ in range(30):
+            writer.write(cap.read()[1])
+    cap.release()
+    video = tmp_path / "cut.mp4"
+    video.write_bytes(whole.read_bytes()[: whole.stat().st_size // 2])
+    out = tmp_path / "out"
+    result = _vtrack(str(video), "--out", str(out), "--quiet")
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr == (f"error: {video}: not a readable video (OpenCV could not open "
+                             f"it) (decoder said: moov atom not found)\n")
+    assert not out.exists()
