@@ -101,3 +101,51 @@ def read_toml(path: str | os.PathLike) -> dict[str, Any]:
         raise InputError(f"{path}: malformed TOML: {exc}") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+
+
+class GrowingFile:
+    """An output file that grows without being rewritten from the start: a committed part,
+    only ever appended to, followed by a provisional tail that each `write` replaces.
+
+    The first `write` creates the file atomically (header included); each later one
+    truncates it to the committed part and writes `final` (now committed) then `tail`, then
+    fsyncs. Whoever reads it meanwhile (or after a crash) finds the committed part followed
+    by the last write or a prefix of it: only a crash during that write itself can leave an
+    incomplete last line. Data comes as chunks (iterables of bytes), so a large tail is
+    never held whole in memory.
+    """
+
+    def __init__(self, path: str | os.PathLike, header: str = "") -> None:
+        self.path = Path(path)
+        self.header = header.encode()
+        self.committed = 0        # bytes known final (header included)
+        self.size = 0             # bytes in the file after the last write
+        self._fh: IO[bytes] | None = None
+
+    def write(self, final: Iterable[bytes] = (), tail: Iterable[bytes] = ()) -> None:
+        """Append the chunks of `final` to the committed part; the chunks of `tail` replace
+        the previous tail."""
+        if self._fh is None:
+            with atomic_open(self.path, "wb") as fh:
+                fh.write(self.header)
+                n_final, n_tail = _write_chunks(fh, final), _write_chunks(fh, tail)
+            self._fh = open(self.path, "r+b")
+            self.committed = len(self.header) + n_final
+        else:
+            self._fh.truncate(self.committed)
+            self._fh.seek(self.committed)
+            n_final, n_tail = _write_chunks(self._fh, final), _write_chunks(self._fh, tail)
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+            self.committed += n_final
+        self.size = self.committed + n_tail
+
+    def close(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
+
+
+def _write_chunks(fh: IO[bytes], chunks: Iterable[bytes]) -> int:
+    """Write every chunk; returns the number of bytes written."""
+    return sum(fh.write(chunk) for chunk in chunks)

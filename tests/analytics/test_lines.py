@@ -6,16 +6,20 @@ from vtrack.analytics.lines import LineCounter
 
 
 def _feed(counter, tid, pts, start=1):
+    """Feed a path; returns the crossings found."""
+    found = []
     for k, p in enumerate(pts):
-        counter.add(tid, start + k, (start + k) / 25, np.array(p, float))
+        found += counter.add(tid, start + k, (start + k) / 25, np.array(p, float))
+    return found
 
 
 def test_moving_down_across_horizontal_line_is_forward():
     c = LineCounter([[0, 100, 640, 100]])
-    _feed(c, 1, [(50, 90), (50, 95), (50, 105)])
+    crossings = _feed(c, 1, [(50, 90), (50, 95), (50, 105)])
     assert c.counts()[0] == {"line": [0.0, 100.0, 640.0, 100.0], "forward": 1, "backward": 0,
                              "total": 1}
-    assert c.crossings[0].frame == 3 and c.crossings[0].direction == "forward"
+    assert len(crossings) == 1
+    assert crossings[0].frame == 3 and crossings[0].direction == "forward"
 
 
 def test_moving_up_is_backward():
@@ -44,9 +48,18 @@ def test_passing_beside_the_segment_does_not_count():
 
 def test_each_track_and_line_counted_separately():
     c = LineCounter([[0, 100, 640, 100], [0, 200, 640, 200]])
-    _feed(c, 1, [(10, 50), (10, 150), (10, 250)])
-    _feed(c, 2, [(20, 250), (20, 150), (20, 50)])
+    found = _feed(c, 1, [(10, 50), (10, 150), (10, 250)])
+    found += _feed(c, 2, [(20, 250), (20, 150), (20, 50)])
     counts = c.counts()
     assert counts[0]["forward"] == 1 and counts[0]["backward"] == 1
     assert counts[1]["forward"] == 1 and counts[1]["backward"] == 1
-    assert len(c.crossings) == 4
+    assert len(found) == 4
+
+
+def test_forgetting_a_finished_track_keeps_its_counts_and_frees_its_state():
+    c = LineCounter([[0, 100, 640, 100]])
+    for tid in range(1, 1001):
+        _feed(c, tid, [(50, 90), (50, 110)])
+        c.forget(tid)
+    assert c.counts()[0]["forward"] == 1000
+    assert not c._last and not c._counted

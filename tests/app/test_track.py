@@ -133,11 +133,12 @@ def test_real_clip_line_counts_match_hand_counts(tmp_path, real_clip, clip, line
             assert abs(total - expected) <= 0.1 * expected
 
 
-def test_interrupt_flushes_valid_files(synth_video, tmp_path):
+def test_interrupt_flushes_valid_files(synth_video, tmp_path, read_video):
     src = synth_video(1)
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
     proc = subprocess.Popen([sys.executable, "-m", "vtrack", "track", str(src / "video.avi"),
-                             "--out", str(tmp_path), "--quiet", "--save-frames"],
+                             "--out", str(tmp_path), "--quiet", "--save-frames",
+                             "--save-video"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     frames = tmp_path / "frames"
     deadline = time.time() + 60
@@ -151,6 +152,9 @@ def test_interrupt_flushes_valid_files(synth_video, tmp_path):
     rows = read_mot(tmp_path / "tracks.csv")
     assert len(rows) == 0 or rows[:, 0].max() <= summary["frames"]
     assert not list(tmp_path.glob(".*.tmp"))
+    video = read_video(tmp_path / "annotated.mp4")   # finalised on the interrupt
+    assert video["codec"] == "h264" and abs(video["frames"] - summary["frames"]) <= 1
+    assert summary["stopped_by"] == "interrupted"
 
 
 @pytest.mark.parametrize("make", ["missing", "text", "empty", "directory"])

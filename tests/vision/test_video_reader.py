@@ -1,4 +1,4 @@
-"""VideoReader (decoding in a supervised child), FrameClock, probe and VideoWriterAtomic."""
+"""VideoReader on files (decoding in a supervised child), FrameClock and probe."""
 
 from __future__ import annotations
 
@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from vtrack.errors import InputError
-from vtrack.vision.video import (ABORT_HOOK_ENV, FrameClock, VideoReader, VideoWriterAtomic,
-                                 probe)
+from vtrack.vision.video import ABORT_HOOK_ENV, FrameClock, VideoReader, probe
 
 VIDEOS = Path(__file__).resolve().parents[2].parent / "shared" / "videos"
 HIGHWAY = VIDEOS / "bgslibrary_video03_highway.avi"
@@ -134,7 +133,10 @@ def test_truncated_file_is_a_clean_partial_read(clip, tmp_path):
     assert [f.index for f in frames] == list(range(1, len(frames) + 1))
 
 
-def test_decoder_abort_mid_file_yields_frames_then_input_error(clip, monkeypatch):
+def test_decoder_abort_mid_file_yields_frames_then_input_error(clip, monkeypatch, capfd,
+                                                               tmp_path):
+    """What the dying decoder prints (the hook writes a glibc-style line to its fd 2) goes
+    to its log, not to this process's stderr."""
     monkeypatch.setenv(ABORT_HOOK_ENV, "5")
     got = []
     with VideoReader(clip) as reader:
@@ -145,13 +147,26 @@ def test_decoder_abort_mid_file_yields_frames_then_input_error(clip, monkeypatch
     assert got == [1, 2, 3, 4, 5]
     assert str(clip) in str(err.value)
     assert _gone(pid)
+    out, errors = capfd.readouterr()
+    assert out == "" and errors == ""
+    assert reader.save_decoder_log(tmp_path / "decoder.log")
+    assert "malloc_consolidate()" in (tmp_path / "decoder.log").read_text()
 
 
-def test_decoder_abort_before_first_frame(clip, monkeypatch):
+def test_decoder_abort_before_first_frame_quotes_the_decoder(clip, monkeypatch, capfd):
     monkeypatch.setenv(ABORT_HOOK_ENV, "0")
     with pytest.raises(InputError, match="before the first frame") as err:
         VideoReader(clip)
     assert str(clip) in str(err.value)
+    assert "(decoder said: malloc_consolidate(): invalid chunk size" in str(err.value)
+    assert capfd.readouterr().err == ""
+
+
+def test_quiet_decoder_leaves_no_log(clip, tmp_path):
+    with VideoReader(clip) as reader:
+        list(reader)
+    assert not reader.save_decoder_log(tmp_path / "decoder.log")
+    assert not (tmp_path / "decoder.log").exists()
 
 
 def test_no_child_left_after_close_exception_or_early_stop(clip):
@@ -174,40 +189,3 @@ def test_probe_reads_container_info(clip):
     info = probe(clip)
     assert (info.width, info.height, info.frame_count) == (W, H, N_FRAMES)
     assert math.isclose(info.fps, FPS)
-
-
-def _count_frames(path: Path) -> int:
-    cap = cv2.VideoCapture(str(path))
-    n = 0
-    while cap.read()[0]:
-        n += 1
-    cap.release()
-    return n
-
-
-def test_writer_output_reads_back(tmp_path):
-    out = tmp_path / "run" / "annotated.mp4"
-    with VideoWriterAtomic(out, FPS, (W, H)) as writer:
-        for n in range(1, 13):
-            writer.write(_marked(n))
-        assert not out.exists()  # only the temporary sibling exists while writing
-    assert _count_frames(out) == 12
-    assert sorted(p.name for p in out.parent.iterdir()) == ["annotated.mp4"]
-
-
-def test_writer_finalizes_on_exception_and_skips_empty_videos(tmp_path):
-    out = tmp_path / "annotated.mp4"
-    with pytest.raises(KeyboardInterrupt):
-        with VideoWriterAtomic(out, FPS, (W, H)) as writer:
-            for n in range(1, 6):
-                writer.write(_marked(n))
-            raise KeyboardInterrupt
-    assert _count_frames(out) == 5
-    empty = tmp_path / "empty.mp4"
-    with VideoWriterAtomic(empty, FPS, (W, H)):
-        pass
-    assert not empty.exists()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["annotated.mp4"]
-    with VideoWriterAtomic(tmp_path / "x.mp4", FPS, (W, H)) as writer:
-        with pytest.raises(ValueError, match="96x64"):
-            writer.write(np.zeros((10, 10, 3), np.uint8))

@@ -40,18 +40,25 @@ def _within_segment(line: np.ndarray, a: np.ndarray, b: np.ndarray, ca: float, c
 
 @dataclass
 class LineCounter:
-    """Counts track crossings of several lines, fed each track's box centres in time order."""
+    """Counts track crossings of several lines, fed each track's box centres in time order.
+
+    Memory stays flat on an endless stream: `add` returns the crossings it finds instead of
+    keeping them, the counts are running totals, and `forget` drops a finished track.
+    """
 
     lines: Sequence[Sequence[float]]
-    crossings: list[Crossing] = field(default_factory=list)
     _last: dict[int, tuple[np.ndarray, list[float]]] = field(default_factory=dict)
     _counted: set[tuple[int, int]] = field(default_factory=set)
 
     def __post_init__(self) -> None:
         self._lines = [np.asarray(l, dtype=float) for l in self.lines]
+        self._totals = {(k, d): 0 for k in range(len(self._lines))
+                        for d in ("forward", "backward")}
 
-    def add(self, track_id: int, frame: int, time: float, center: np.ndarray) -> None:
-        """Feed one path point of a track (frames of one track must come in order)."""
+    def add(self, track_id: int, frame: int, time: float, center: np.ndarray) -> list[Crossing]:
+        """Feed one path point of a track (frames of one track must come in order); returns
+        the crossings this step of its path makes."""
+        found = []
         p = np.asarray(center, dtype=float)
         sides = [_side(l, p) for l in self._lines]
         prev = self._last.get(track_id)
@@ -66,16 +73,23 @@ class LineCounter:
                     continue
                 if _within_segment(line, a, p, ca, cb):
                     self._counted.add((track_id, k))
-                    self.crossings.append(Crossing(frame, time, track_id, k,
-                                                   "forward" if ca < 0 else "backward"))
+                    found.append(Crossing(frame, time, track_id, k,
+                                          "forward" if ca < 0 else "backward"))
+                    self._totals[k, found[-1].direction] += 1
         self._last[track_id] = (p, sides)
+        return found
+
+    def forget(self, track_id: int) -> None:
+        """Drop a track that will get no more path points (its crossings stay counted)."""
+        self._last.pop(track_id, None)
+        for k in range(len(self._lines)):
+            self._counted.discard((track_id, k))
 
     def counts(self) -> list[dict]:
         """Per line: {"line": [...], "forward": n, "backward": n, "total": n}."""
         out = []
         for k, line in enumerate(self._lines):
-            fw = sum(1 for c in self.crossings if c.line == k and c.direction == "forward")
-            bw = sum(1 for c in self.crossings if c.line == k and c.direction == "backward")
+            fw, bw = self._totals[k, "forward"], self._totals[k, "backward"]
             out.append({"line": [float(v) for v in line], "forward": fw, "backward": bw,
                         "total": fw + bw})
         return out

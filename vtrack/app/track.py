@@ -1,26 +1,34 @@
-"""`vtrack track`: video -> MOG2 detections -> tracker -> tracks.csv, summary.json,
-crossings.csv, annotated frames/video and an optional rerun recording.
+"""`vtrack track`: video file, stream or camera -> MOG2 detections -> tracker -> tracks.csv,
+crossings.csv, summary.json, annotated frames/video and an optional rerun recording.
 
-Outputs are written atomically; on an interruption or a decoder failure the frames processed
-so far are flushed to valid files with "complete": false in summary.json.
+The output files are kept by sinks (`outputs`): flushed after the first frame, at least
+every `flush_seconds` and at the end, each time with summary.json last, so the folder holds
+valid files at any moment and a crash loses at most the last interval. On an interruption,
+a decoder failure or a live source that is lost, what was processed is flushed with
+"complete": false. Memory stays flat however long a live source runs.
 """
 
 from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Iterator
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from vtrack import __version__
 from vtrack.app.config import AppConfig
-from vtrack.fileio import replace_dir, write_csv, write_json
-from vtrack.analytics.lines import LineCounter
+from vtrack.app.outputs import (CrossingsCsv, DetectionsCsv, FrameTimes, Sink, TrackedFrame,
+                                TrackEnds, TracksCsv)
+from vtrack.errors import InputError
+from vtrack.fileio import replace_dir, write_json
 from vtrack.tracking.tracker import FrameTracks, Tracker
+from vtrack.vision.sources import parse_source
+
+
+def _warn(message: str) -> None:
+    print(f"warning: {message}", file=sys.stderr)
 
 
 @dataclass
@@ -32,91 +40,143 @@ class TrackOptions:
     max_frames: int | None = None
     progress: bool = False
     save_detections: bool = False     # also write detections.csv (the detector's boxes)
+    reconnect_seconds: float = 30.0   # a live source silent this long is lost (exit 2)
+    flush_seconds: float = 10.0       # outputs brought up to date at least this often
+    warn: Callable[[str], None] = _warn
 
 
-@dataclass
-class _Outputs:
-    """Everything accumulated during a run, flushed by `write`."""
+class Trails:
+    """The recent path (box centres) of each live track, for drawing."""
 
-    rows: list[np.ndarray] = field(default_factory=list)   # (R, 7) blocks of ROW_COLUMNS
-    times: list[float] = field(default_factory=list)
-    detections: list[np.ndarray] = field(default_factory=list)  # (D, 5) frame, x, y, w, h
+    def __init__(self, length: int) -> None:
+        self.length = length
+        self.paths: dict[int, list[tuple[float, float]]] = {}
 
-
-def _center(box: list[float]) -> np.ndarray:
-    return np.array([box[0] + box[2] / 2.0, box[1] + box[3] / 2.0])
+    def update(self, f: TrackedFrame) -> None:
+        for _, tid, x, y, w, h, _ in f.tracks.rows.tolist():
+            path = self.paths.setdefault(int(tid), [])
+            path.append((x + w / 2.0, y + h / 2.0))
+            del path[: -self.length]
+        for tid in f.ended:
+            self.paths.pop(tid, None)
 
 
 class TrackJob:
-    """One video tracked into one output folder."""
+    """One video file, stream or camera tracked into one output folder."""
 
     def __init__(self, video: str | Path, out_dir: str | Path, cfg: AppConfig,
                  opts: TrackOptions) -> None:
-        self.video = Path(video)
+        self.source = parse_source(video)
         self.out = Path(out_dir)
         self.cfg = cfg
         self.opts = opts
-        self.acc = _Outputs()
-        self.counter = LineCounter(cfg.count_lines)
-        self.trails: dict[int, list[tuple[float, float]]] = {}
+        self.trails = Trails(cfg.output.trail_length)
         self.info: Any = None
+        self.reader: Any = None
+        self.sinks: list[Sink] = []
+        self.crossings: CrossingsCsv | None = None
+        self.detections: DetectionsCsv | None = None
         self.frames = 0
         self.elapsed = 0.0
+        self.stopped_by: str | None = None   # why the run ended (None while it runs)
+        self.error: str | None = None
 
     # ------------------------------------------------------------------ running
     def run(self) -> dict[str, Any]:
-        """Track the whole video; returns the summary (also on interruption, then re-raised)."""
+        """Track the whole source; returns the summary (also on interruption or a lost
+        source, then re-raised)."""
         from vtrack.vision.detect import MotionDetector
         from vtrack.vision.video import VideoReader
 
-        reader = VideoReader(self.video, max_frames=self.opts.max_frames)
-        self.info = reader.info
+        self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
+                                  reconnect_seconds=self.opts.reconnect_seconds)
+        self.info = self.reader.info
         self._prepare_out_dir()
-        complete = False
-        writer = logger = bar = None
+        parts: list[Any] = []   # progress bar, video writer, rerun logger: closed at the end
         try:
             detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height,
                                       self.info.fps)
-            detector.initialise(self._background_samples())
+            if not self.source.live:
+                detector.initialise(self._background_samples())
             tracker = Tracker(self.cfg.tracker, self.info.width, self.info.height,
                               self.info.fps)
-            writer = self._open_writer()
-            logger = self._open_rerun()
-            bar = self._progress()
-            t0 = time.perf_counter()
-            for frame in reader:
-                dets = detector.detect(frame.image,
-                                       lambda motion: tracker.predict(frame.time, motion))
-                ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes)
-                self.frames = frame.index
-                self.acc.times.append(frame.time)
-                self._record(ft)
-                if self.opts.save_detections:
-                    self.acc.detections.append(np.column_stack(
-                        [np.full(len(dets), frame.index), dets.boxes]))
-                if self.opts.save_frames or writer is not None:
-                    self._annotate(frame, ft, dets, writer)
-                if logger is not None:
-                    logger.log_frame(frame, dets, ft, detector.foreground)
-                    logger.log_trails(self.trails)
-                self.elapsed = time.perf_counter() - t0
-                if bar is not None:
-                    bar.update(1)
-            complete = True
+            self.sinks = self._sinks(tracker)
+            for open_part in (self._progress, self._open_writer, self._open_rerun):
+                parts.append(open_part())
+            self._loop(detector, tracker, *parts)
+            self.stopped_by = ("max-frames" if self.opts.max_frames
+                               and self.frames >= self.opts.max_frames else "end")
+        except KeyboardInterrupt:
+            self.stopped_by = "interrupted"
+            raise
+        except InputError as exc:   # the source failed (or was lost) after the first frame
+            self.stopped_by, self.error = "error", str(exc)
         finally:
-            reader.close()
-            if bar is not None:
-                bar.close()
-            if writer is not None:
-                writer.close()
-            if logger is not None:
-                logger.close()
-            summary = self._write(complete)
+            summary = self._finish(parts)
+        if self.error:
+            raise InputError(self.error)
         return summary
 
-    def _background_samples(self) -> Iterator[np.ndarray]:
-        """Frames sampled evenly over the first `init_background_seconds` of the video (a
-        second, supervised read of its start), for the detector's background."""
+    def _loop(self, detector: Any, tracker: Tracker, bar: Any, writer: Any,
+              logger: Any) -> None:
+        times = FrameTimes(tracker.max_row_lag + 1)
+        ends = TrackEnds()
+        next_flush = 0.0   # the first frame is flushed at once
+        t0 = time.perf_counter()
+        for frame in self.reader:
+            # The tracker predicts once the detector knows the camera's motion, so that
+            # blobs holding several predicted vehicles can be divided among them.
+            dets = detector.detect(frame.image,
+                                   lambda motion: tracker.predict(frame.time, motion))
+            ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes)
+            self.frames = frame.index
+            if self.detections is not None:
+                self.detections.add(frame.index, dets.boxes)
+            times.add(frame.index, frame.time)
+            tf = TrackedFrame(frame.index, frame.time, ft, ends.update(ft), times)
+            for sink in self.sinks:
+                sink.frame(tf)
+            self.trails.update(tf)
+            if self.opts.save_frames or writer is not None:
+                self._annotate(frame, ft, dets, writer)
+            if logger is not None:
+                logger.log_frame(frame, dets, ft, detector.foreground)
+                logger.log_trails(self.trails.paths)
+            self.elapsed = time.perf_counter() - t0
+            if bar is not None:
+                bar.update(1)
+            if time.monotonic() >= next_flush:
+                self._flush()
+                next_flush = time.monotonic() + self.opts.flush_seconds
+
+    def _finish(self, parts: list[Any]) -> dict[str, Any]:
+        """Stop the decoder, close the video and recording, keep the decoder's log, flush
+        every output a last time; returns the summary."""
+        self.reader.close()
+        for part in parts:
+            if part is not None:
+                part.close()
+        log = self.out / "decoder.log"
+        if self.reader.save_decoder_log(log) and self.error:
+            self.error += f" (decoder messages in {log})"
+        summary = self._flush()
+        for sink in self.sinks:
+            sink.close()
+        return summary
+
+    def _sinks(self, tracker: Tracker) -> list[Sink]:
+        """The per-frame consumers that own output files (add new outputs here)."""
+        self.crossings = CrossingsCsv(self.out / "crossings.csv", self.cfg.count_lines)
+        sinks: list[Sink] = [TracksCsv(self.out / "tracks.csv", tracker.max_row_lag),
+                             self.crossings]
+        if self.opts.save_detections:
+            self.detections = DetectionsCsv(self.out / "detections.csv")
+            sinks.append(self.detections)
+        return sinks
+
+    def _background_samples(self) -> Iterator[Any]:
+        """Frames sampled evenly over the first `init_background_seconds` of a video file
+        (a second, supervised read of its start), for the detector's background."""
         from vtrack.vision.video import VideoReader
 
         cfg = self.cfg.detector
@@ -129,15 +189,17 @@ class TrackJob:
             return
         stride = n / cfg.init_background_samples
         wanted = {1 + int(k * stride) for k in range(cfg.init_background_samples)}
-        with VideoReader(self.video, max_frames=n) as reader:
+        with VideoReader(self.source, max_frames=n) as reader:
             for frame in reader:
                 if frame.index in wanted:
                     yield frame.image
 
     def _prepare_out_dir(self) -> None:
         self.out.mkdir(parents=True, exist_ok=True)
-        # Re-running into a folder replaces it: no stale frames or video from an earlier run.
-        for stale in ("annotated.mp4",):
+        # Re-running into a folder replaces it: no stale frames, video or log from an
+        # earlier run (tracks.csv, crossings.csv and summary.json are replaced at the
+        # first flush).
+        for stale in ("annotated.mp4", "decoder.log", "detections.csv"):
             (self.out / stale).unlink(missing_ok=True)
         if (self.out / "frames").exists() or self.opts.save_frames:
             replace_dir(self.out / "frames")
@@ -147,10 +209,13 @@ class TrackJob:
     def _open_writer(self) -> Any:
         if not self.opts.save_video:
             return None
-        from vtrack.vision.video import VideoWriterAtomic
+        from vtrack.vision.video_writer import open_video_writer
 
-        return VideoWriterAtomic(self.out / "annotated.mp4", self.info.fps,
-                                 (self.info.width, self.info.height))
+        writer = open_video_writer(self.out / "annotated.mp4", self.info.fps,
+                                   (self.info.width, self.info.height))
+        if writer.warning:
+            self.opts.warn(writer.warning)
+        return writer
 
     def _open_rerun(self) -> Any:
         if not (self.opts.rerun or self.opts.rerun_spawn):
@@ -167,69 +232,55 @@ class TrackJob:
         total = self.info.frame_count or None
         if self.opts.max_frames:
             total = min(total or self.opts.max_frames, self.opts.max_frames)
-        return tqdm(total=total, unit="frame", desc=self.video.name, file=sys.stderr,
+        desc = self.source.spec if self.source.live else Path(self.source.spec).name
+        return tqdm(total=total, unit="frame", desc=desc, file=sys.stderr,
                     dynamic_ncols=True)
-
-    # ---------------------------------------------------------------- recording
-    def _record(self, ft: FrameTracks) -> None:
-        self.acc.rows.append(ft.rows)
-        for frame, tid, *box, _ in ft.rows:
-            frame, tid = int(frame), int(tid)
-            c = _center(box)
-            self.counter.add(tid, frame, self.acc.times[frame - 1], c)
-            trail = self.trails.setdefault(tid, [])
-            trail.append((float(c[0]), float(c[1])))
-            del trail[: -self.cfg.output.trail_length]
 
     def _annotate(self, frame: Any, ft: FrameTracks, dets: Any, writer: Any) -> None:
         from vtrack.vision.annotate import draw_frame, save_jpeg
 
-        counts = [(c["forward"], c["backward"]) for c in self.counter.counts()]
+        counts = [(c["forward"], c["backward"]) for c in self.crossings.counter.counts()]
         img = draw_frame(frame.image, ids=ft.ids, boxes=ft.boxes, coasted=ft.coasted,
-                         trails={i: self.trails.get(int(i), []) for i in ft.ids},
+                         trails={i: self.trails.paths.get(int(i), []) for i in ft.ids},
                          detections=dets, lines=self.cfg.count_lines, counts=counts,
                          frame_index=frame.index)
         if self.opts.save_frames:
             save_jpeg(self.out / "frames" / f"{frame.index:06d}.jpg", img,
                       quality=self.cfg.output.jpeg_quality)
         if writer is not None:
-            writer.write(img)
+            writer.write(img, frame.time)
 
     # ------------------------------------------------------------------ writing
-    def _write(self, complete: bool) -> dict[str, Any]:
-        rows = np.concatenate(self.acc.rows) if self.acc.rows else np.zeros((0, 7))
-        rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]
-        write_csv(self.out / "tracks.csv", (
-            [int(r[0]), int(r[1]), *(f"{v:.2f}" for v in r[2:6]), f"{r[6]:.3f}", -1, -1, -1]
-            for r in rows))
-        write_csv(self.out / "crossings.csv",
-                  ([c.frame, f"{c.time:.4f}", c.id, c.line, c.direction]
-                   for c in self.counter.crossings),
-                  header=["frame", "time_s", "id", "line", "direction"])
-        if self.opts.save_detections:
-            dets = (np.concatenate(self.acc.detections) if self.acc.detections
-                    else np.zeros((0, 5)))
-            write_csv(self.out / "detections.csv", (
-                [int(d[0]), -1, *(f"{v:.2f}" for v in d[1:5]), 1, -1, -1, -1] for d in dets))
+    def _flush(self) -> dict[str, Any]:
+        """Bring every output file up to date, summary.json last; returns the summary."""
+        entries: dict[str, Any] = {"tracks": 0, "counts": []}  # before the first frame
+        for sink in self.sinks:
+            entries.update(sink.flush())
         summary = {
-            "video": str(self.video),
+            "video": self.source.spec,
             "frames": self.frames,
             "width": self.info.width,
             "height": self.info.height,
             "fps_video": float(self.info.fps),
             "fps_processed": round(self.frames / self.elapsed, 2) if self.elapsed > 0 else 0.0,
-            "tracks": int(len(np.unique(rows[:, 1]))),
-            "complete": complete,
-            "counts": self.counter.counts(),
+            **entries,
+            "complete": self.stopped_by in ("end", "max-frames"),
+            "stopped_by": self.stopped_by,
+            "live": self.source.live,
+            "reconnects": self.reader.reconnects,
+            "dropped_frames": self.reader.dropped_frames,
             "vtrack_version": __version__,
             "config_hash": self.cfg.digest(),
             "config": self.cfg.to_dict(),
         }
+        if self.error:
+            summary["error"] = self.error
         write_json(self.out / "summary.json", summary)
         return summary
 
 
 def track_video(video: str | Path, out_dir: str | Path, cfg: AppConfig,
                 opts: TrackOptions | None = None) -> dict[str, Any]:
-    """Track one video into `out_dir`; returns summary.json's content."""
+    """Track one video file, stream or camera into `out_dir`; returns summary.json's
+    content."""
     return TrackJob(video, out_dir, cfg, opts or TrackOptions()).run()

@@ -81,6 +81,13 @@ class Tracker:
     def __len__(self) -> int:
         return len(self.tracks)
 
+    @property
+    def max_row_lag(self) -> int:
+        """Rows come out of `update` late (a tentative track's once it is confirmed, coasted
+        ones once the vehicle is re-acquired), but never this many frames late: after frame
+        g, no row of a frame <= g - max_row_lag will come."""
+        return self.reporter.MAX_PENDING + 1
+
     def step(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
              motion: np.ndarray | None = None) -> FrameTracks:
         """predict, then update (see those)."""
