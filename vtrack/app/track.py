@@ -176,7 +176,8 @@ class TrackJob:
 
     def _background_samples(self) -> Iterator[Any]:
         """Frames sampled evenly over the first `init_background_seconds` of a video file
-        (a second, supervised read of its start), for the detector's background."""
+        (a second, supervised read of its start), for the detector's background. A file
+        that fails here gives what was read: the main read reports the failure."""
         from vtrack.vision.video import VideoReader
 
         cfg = self.cfg.detector
@@ -190,9 +191,12 @@ class TrackJob:
         stride = n / cfg.init_background_samples
         wanted = {1 + int(k * stride) for k in range(cfg.init_background_samples)}
         with VideoReader(self.source, max_frames=n) as reader:
-            for frame in reader:
-                if frame.index in wanted:
-                    yield frame.image
+            try:
+                for frame in reader:
+                    if frame.index in wanted:
+                        yield frame.image
+            except InputError:
+                return
 
     def _prepare_out_dir(self) -> None:
         self.out.mkdir(parents=True, exist_ok=True)

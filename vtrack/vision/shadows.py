@@ -7,8 +7,9 @@ on grey asphalt passes that test too. What tells them apart is texture: a shadow
 the road it falls on by one factor, so the ratio frame / background is smooth across it and
 the road's own texture shows through, while a vehicle brings outlines, windows and lights of
 its own (Sanin et al. 2012 review texture tests for this reason). Per shadow-labelled pixel
-the local standard deviation of the ratio (a `window` x `window` box) is compared with
-`texture`: below it the pixel is shadow and dropped, above it the pixel is kept as
+the standard deviation of the ratio over the shadow-labelled pixels of a `window` x `window`
+box (so that a vehicle's edge next to its shadow does not count as texture) is compared
+with `texture`: below it the pixel is shadow and dropped, above it the pixel is kept as
 foreground.
 """
 
@@ -37,10 +38,15 @@ def textured_shadow(raw: np.ndarray, frame: np.ndarray, background: np.ndarray,
         return fg
     f = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY).astype(np.float32)
     b = cv2.cvtColor(background, cv2.COLOR_BGR2GRAY).astype(np.float32)
-    ratio = f / (b + 1.0)
+    w = candidates.astype(np.float32)
+    ratio = f / (b + 1.0) * w
     k = (window, window)
-    mean = cv2.blur(ratio, k)
-    var = cv2.blur(ratio * ratio, k) - mean * mean
-    vehicle = candidates & (var > texture * texture)
+    n = np.maximum(cv2.blur(w, k), 1e-6)   # statistics over the window's shadow pixels only
+    mean = cv2.blur(ratio, k) / n
+    var = cv2.blur(ratio * ratio, k) / n - mean * mean
+    # The ring of blurred pixels around a vehicle's outline looks like textured shadow:
+    # pixels next to the foreground are not judged (the closing fills a vehicle's holes).
+    ring = cv2.dilate(fg, np.ones((3, 3), np.uint8)) > 0
+    vehicle = candidates & ~ring & (var > texture * texture)
     fg[vehicle] = 255
     return fg

@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+STILL_WARP_PX = 0.25  # a transform moving no image corner further than this is no motion
 
 
 def corner_shift(M: np.ndarray, width: int, height: int) -> float:
@@ -134,14 +135,16 @@ class Stabiliser:
         self.max_shift = max(self.max_shift, corner_shift(m, self.width, self.height))
         if self.frames >= self.probe_frames and self.max_shift <= self.still_px:
             self.active = False  # a still camera: nothing to compensate
+        if corner_shift(m, self.width, self.height) <= STILL_WARP_PX:
+            return small, IDENTITY   # below what resampling could represent: no motion
         return _warp(small, m), m
 
 
 def _warp(small: np.ndarray, m: np.ndarray) -> np.ndarray:
     """`small` resampled onto the reference by M (reference -> small); unchanged when M
-    moves no corner by more than 0.05 px."""
+    moves no corner by more than a quarter pixel (resampling blurs more than that moves)."""
     h, w = small.shape[:2]
-    if corner_shift(m, w, h) <= 0.05:
+    if corner_shift(m, w, h) <= STILL_WARP_PX:
         return small
     return cv2.warpAffine(small, m, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                           borderMode=cv2.BORDER_REPLICATE)
