@@ -1,5 +1,6 @@
-"""`vtrack track`: video -> MOG2 detections -> tracker -> tracks.csv, summary.json,
-crossings.csv, annotated frames/video and an optional rerun recording.
+"""`vtrack track`: video -> MOG2 detections -> tracker -> tracks.csv, summary.json, the
+traffic analytics (vtrack.analytics.traffic: crossings, vehicles, counts, zone events),
+annotated frames/video and an optional rerun recording.
 
 Outputs are written atomically; on an interruption or a decoder failure the frames processed
 so far are flushed to valid files with "complete": false in summary.json.
@@ -16,9 +17,10 @@ from typing import Any
 import numpy as np
 
 from vtrack import __version__
+from vtrack.analytics.calibration import Calibration
+from vtrack.analytics.traffic import TrafficAnalytics
 from vtrack.app.config import AppConfig
 from vtrack.fileio import replace_dir, write_csv, write_json
-from vtrack.analytics.lines import LineCounter
 from vtrack.tracking.tracker import FrameTracks, Tracker
 
 
@@ -30,6 +32,8 @@ class TrackOptions:
     rerun_spawn: bool = False         # also stream to a live viewer
     max_frames: int | None = None
     progress: bool = False
+    calibration: Calibration | None = None   # ground plane: speeds, lengths, classes
+    bin_seconds: float = 60.0                 # time bin of counts.csv
 
 
 @dataclass
@@ -54,7 +58,7 @@ class TrackJob:
         self.cfg = cfg
         self.opts = opts
         self.acc = _Outputs()
-        self.counter = LineCounter(cfg.count_lines)
+        self.analytics: TrafficAnalytics | None = None
         self.trails: dict[int, list[tuple[float, float]]] = {}
         self.info: Any = None
         self.frames = 0
@@ -68,7 +72,16 @@ class TrackJob:
 
         reader = VideoReader(self.video, max_frames=self.opts.max_frames)
         self.info = reader.info
+        try:
+            self.analytics = TrafficAnalytics(
+                self.out, self.info.width, self.info.height, self.info.fps,
+                self.cfg.count_lines, self.cfg.zones, self.opts.calibration,
+                self.opts.bin_seconds)
+        except BaseException:
+            reader.close()
+            raise
         self._prepare_out_dir()
+        self.analytics.flush()
         complete = False
         writer = logger = bar = None
         try:
@@ -84,6 +97,7 @@ class TrackJob:
                 self.frames = frame.index
                 self.acc.times.append(frame.time)
                 self._record(ft)
+                self.analytics.add_frame(frame.index, frame.time, ft)
                 if self.opts.save_frames or writer is not None:
                     self._annotate(frame, ft, dets, writer)
                 if logger is not None:
@@ -143,21 +157,19 @@ class TrackJob:
     # ---------------------------------------------------------------- recording
     def _record(self, ft: FrameTracks) -> None:
         self.acc.rows.append(ft.rows)
-        for frame, tid, *box, _ in ft.rows:
-            frame, tid = int(frame), int(tid)
+        for _, tid, *box, _ in ft.rows:
             c = _center(box)
-            self.counter.add(tid, frame, self.acc.times[frame - 1], c)
-            trail = self.trails.setdefault(tid, [])
+            trail = self.trails.setdefault(int(tid), [])
             trail.append((float(c[0]), float(c[1])))
             del trail[: -self.cfg.output.trail_length]
 
     def _annotate(self, frame: Any, ft: FrameTracks, dets: Any, writer: Any) -> None:
         from vtrack.vision.annotate import draw_frame, save_jpeg
 
-        counts = [(c["forward"], c["backward"]) for c in self.counter.counts()]
         img = draw_frame(frame.image, ids=ft.ids, boxes=ft.boxes, coasted=ft.coasted,
                          trails={i: self.trails.get(int(i), []) for i in ft.ids},
-                         detections=dets, lines=self.cfg.count_lines, counts=counts,
+                         detections=dets, lines=self.analytics.lines_px,
+                         counts=self.analytics.line_counts(),
                          frame_index=frame.index)
         if self.opts.save_frames:
             save_jpeg(self.out / "frames" / f"{frame.index:06d}.jpg", img,
@@ -172,10 +184,6 @@ class TrackJob:
         write_csv(self.out / "tracks.csv", (
             [int(r[0]), int(r[1]), *(f"{v:.2f}" for v in r[2:6]), f"{r[6]:.3f}", -1, -1, -1]
             for r in rows))
-        write_csv(self.out / "crossings.csv",
-                  ([c.frame, f"{c.time:.4f}", c.id, c.line, c.direction]
-                   for c in self.counter.crossings),
-                  header=["frame", "time_s", "id", "line", "direction"])
         summary = {
             "video": str(self.video),
             "frames": self.frames,
@@ -185,7 +193,7 @@ class TrackJob:
             "fps_processed": round(self.frames / self.elapsed, 2) if self.elapsed > 0 else 0.0,
             "tracks": int(len(np.unique(rows[:, 1]))),
             "complete": complete,
-            "counts": self.counter.counts(),
+            **self.analytics.flush(final=True),   # counts, zones, calibration
             "vtrack_version": __version__,
             "config_hash": self.cfg.digest(),
             "config": self.cfg.to_dict(),
