@@ -11,11 +11,9 @@ import json
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from vtrack.cli import main
-from vtrack.sim.traffic import simulate_traffic
 
 ROOT = Path(__file__).resolve().parents[2]
 FRAMES, FPS = 250, 25.0
@@ -26,23 +24,6 @@ def _eval_speed():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
-
-
-def _overhead_truth(seed: int, folder: Path) -> None:
-    """calibration.toml (the overhead scene is a pure scale: pixels / px_per_m) and world.csv
-    (per frame and vehicle: speed, length and class) for the synth_video fixture's scene."""
-    tr = simulate_traffic(FRAMES, 12, 640, 360, FPS, seed)
-    ppm = tr.layout.px_per_m
-    pts = [(40, 60), (600, 70), (590, 330), (50, 320)]
-    (folder / "calibration.toml").write_text("frame_size = [640, 360]\n" + "".join(
-        f"[[points]]\nimage = [{u}, {v}]\nworld = [{u / ppm:.6f}, {v / ppm:.6f}]\n"
-        for u, v in pts))
-    rows = ["frame,id,X_m,Y_m,speed_kmh,length_m,class"]
-    for k, veh in enumerate(tr.vehicles):
-        for n in np.flatnonzero(np.isfinite(tr.s[k])):
-            rows.append(f"{n + 1},{veh.id},{tr.s[k, n] / ppm:.3f},0,"
-                        f"{3.6 * tr.v[k, n] / ppm:.3f},{veh.length / ppm:.3f},{veh.kind}")
-    (folder / "world.csv").write_text("\n".join(rows) + "\n")
 
 
 def _csv(path: Path) -> list[dict]:
@@ -68,11 +49,11 @@ def _check_counts(out: Path, summary: dict, classes: set[str], bin_s: float) -> 
     assert len(crossings) == sum(c["total"] for c in summary["counts"])
 
 
-def test_calibrated_run_counts_per_class_and_speeds_against_truth(synth_video, tmp_path):
+def test_calibrated_run_counts_per_class_and_speeds_against_truth(synth_video, overhead_truth,
+                                                                  tmp_path):
     src = synth_video(0)
     truth = tmp_path / "truth"
-    truth.mkdir()
-    _overhead_truth(0, truth)
+    overhead_truth(0, truth)
     out = tmp_path / "run"
     assert main(["track", str(src / "video.avi"), "--out", str(out), "--quiet",
                  "--calibration", str(truth / "calibration.toml"), "--bin-seconds", "3",

@@ -41,7 +41,8 @@ def test_enter_exit_and_dwell():
     assert (ev.enter_frame, ev.exit_frame) == (first_in, first_out)
     assert ev.dwell_s == pytest.approx((first_out - first_in) / FPS)
     assert zc.summary() == [{"name": "bay", "entries": 1, "max_occupancy": 1,
-                             "mean_dwell_s": round(ev.dwell_s, 4)}]
+                             "mean_dwell_s": round(ev.dwell_s, 4),
+                             "polygon": SQUARE.tolist()}]
 
 
 def test_jitter_on_the_border_is_one_stay():

@@ -159,8 +159,8 @@ class TrafficAnalytics:
 
     def flush(self, final: bool = False) -> dict[str, Any]:
         """Write what became final since the last flush (all of it with `final`: the run is
-        over and live tracks end here); returns summary.json's `counts`, `zones` and, when
-        calibrated, `calibration`."""
+        over and live tracks end here); returns summary.json's `counts`, `zones`,
+        `bin_seconds` and, when calibrated, `calibration`."""
         if final:
             for tid in list(self.vehicles):
                 self._finish(tid)
@@ -180,11 +180,13 @@ class TrafficAnalytics:
         return self.summary()
 
     def summary(self) -> dict[str, Any]:
+        """summary.json's analytics keys as of now (counts[i] gains "name" if named)."""
         counts = self.counter.counts()
         for line, c in zip(self.lines, counts):
             if line.name:
                 c["name"] = line.name
-        out: dict[str, Any] = {"counts": counts, "zones": self.zones.summary()}
+        out: dict[str, Any] = {"counts": counts, "zones": self.zones.summary(),
+                               "bin_seconds": self.bins.bin_seconds}
         if self.calibration is not None:
             cal = {"file": self.calibration.source, **self.calibration.errors()}
             if self.camera is not None:

@@ -138,8 +138,9 @@ class ZoneCounter:
         return ev
 
     def summary(self) -> list[dict]:
-        """summary.json `zones`: entries, max occupancy and the mean dwell of the stays
-        written so far (the mean of zone_events.csv's dwell_s for the zone)."""
+        """summary.json `zones`: entries, max occupancy, the mean dwell of the stays written
+        so far (the mean of zone_events.csv's dwell_s for the zone) and the polygon (px)."""
         return [{"name": n, "entries": s.entries, "max_occupancy": s.max_occupancy,
-                 "mean_dwell_s": round(s.dwell_sum / s.events, 4) if s.events else 0.0}
-                for n, s in zip(self.names, self._stats)]
+                 "mean_dwell_s": round(s.dwell_sum / s.events, 4) if s.events else 0.0,
+                 "polygon": [[round(float(x), 2), round(float(y), 2)] for x, y in poly]}
+                for n, s, poly in zip(self.names, self._stats, self.polygons)]
