@@ -41,7 +41,6 @@ class _Outputs:
     """Everything accumulated during a run, flushed by `write`."""
 
     rows: list[np.ndarray] = field(default_factory=list)   # (R, 7) blocks of ROW_COLUMNS
-    times: list[float] = field(default_factory=list)
 
 
 def _center(box: list[float]) -> np.ndarray:
@@ -95,7 +94,6 @@ class TrackJob:
                 dets = detector.detect(frame.image)
                 ft = tracker.step(frame.index, frame.time, dets.centers, dets.boxes)
                 self.frames = frame.index
-                self.acc.times.append(frame.time)
                 self._record(ft)
                 self.analytics.add_frame(frame.index, frame.time, ft)
                 if self.opts.save_frames or writer is not None:
