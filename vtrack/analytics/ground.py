@@ -41,11 +41,6 @@ def contact_velocities(states: np.ndarray, size_rates: np.ndarray) -> np.ndarray
     return np.column_stack([states[:, 2], states[:, 3] + size_rates[:, 1] / 2.0])
 
 
-def road_velocities(calib: Calibration, g: np.ndarray, g_dot: np.ndarray) -> np.ndarray:
-    """(K, 2) road-plane velocities J_H(g) g', m/s (NaN beyond the horizon)."""
-    return calib.ground_velocity(g, g_dot)
-
-
 def speed_sigmas(calib: Calibration, g: np.ndarray, v_road: np.ndarray,
                  covariances: np.ndarray) -> np.ndarray:
     """(K,) std of the road speed, m/s: the filter's velocity covariance P_v (px^2/s^2)

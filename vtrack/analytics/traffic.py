@@ -24,7 +24,7 @@ from vtrack.analytics.bins import CountBins
 from vtrack.analytics.calibration import Calibration
 from vtrack.analytics.camera import camera_from_homography
 from vtrack.analytics.ground import (contact_points, contact_velocities, footprint_samples,
-                                     road_velocities, speed_sigmas)
+                                     speed_sigmas)
 from vtrack.analytics.lines import LineCounter
 from vtrack.analytics.regions import CountLine, Zone
 from vtrack.analytics.vehicles import (CLASSES, MIN_LENGTH_SPEED, SPEED_SIGMA_MAX,
@@ -124,7 +124,7 @@ class TrafficAnalytics:
         states, boxes, rates = ft.states[det], ft.boxes[det], ft.size_rates[det]
         g = contact_points(states, boxes)
         g_dot = contact_velocities(states, rates)
-        v = road_velocities(self.calibration, g, g_dot)
+        v = self.calibration.ground_velocity(g, g_dot)            # J_H(g) g', m/s
         speed = np.hypot(v[:, 0], v[:, 1])
         sigma = speed_sigmas(self.calibration, g, v, ft.covariances[det])
         length, k = footprint_samples(self.calibration, self.camera, boxes, v)
