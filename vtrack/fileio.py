@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import json
 import os
 import shutil
@@ -64,6 +65,20 @@ def write_csv(path: str | os.PathLike, rows: Iterable[Sequence[Any]],
         if header is not None:
             w.writerow(header)
         w.writerows(rows)
+
+
+def append_csv(path: str | os.PathLike, rows: Iterable[Sequence[Any]]) -> None:
+    """Append CSV rows to an existing file in one write, then fsync: a growing output (made
+    with `write_csv`, header first) is extended without being rewritten from the start."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    text = buf.getvalue()
+    if not text:
+        return
+    with open(path, "a", encoding="utf-8", newline="") as fh:
+        fh.write(text)
+        fh.flush()
+        os.fsync(fh.fileno())
 
 
 def replace_dir(path: str | os.PathLike) -> Path:

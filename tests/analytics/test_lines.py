@@ -6,11 +6,11 @@ from vtrack.analytics.lines import LineCounter
 
 
 def _feed(counter, tid, pts, start=1):
-    """Feed a path; returns the crossings found."""
-    found = []
+    """Feed a path; returns the crossings it completed."""
+    out = []
     for k, p in enumerate(pts):
-        found += counter.add(tid, start + k, (start + k) / 25, np.array(p, float))
-    return found
+        out += counter.add(tid, start + k, (start + k) / 25, np.array(p, float))
+    return out
 
 
 def test_moving_down_across_horizontal_line_is_forward():
@@ -18,7 +18,6 @@ def test_moving_down_across_horizontal_line_is_forward():
     crossings = _feed(c, 1, [(50, 90), (50, 95), (50, 105)])
     assert c.counts()[0] == {"line": [0.0, 100.0, 640.0, 100.0], "forward": 1, "backward": 0,
                              "total": 1}
-    assert len(crossings) == 1
     assert crossings[0].frame == 3 and crossings[0].direction == "forward"
 
 
@@ -48,18 +47,18 @@ def test_passing_beside_the_segment_does_not_count():
 
 def test_each_track_and_line_counted_separately():
     c = LineCounter([[0, 100, 640, 100], [0, 200, 640, 200]])
-    found = _feed(c, 1, [(10, 50), (10, 150), (10, 250)])
-    found += _feed(c, 2, [(20, 250), (20, 150), (20, 50)])
+    crossings = _feed(c, 1, [(10, 50), (10, 150), (10, 250)])
+    crossings += _feed(c, 2, [(20, 250), (20, 150), (20, 50)])
     counts = c.counts()
     assert counts[0]["forward"] == 1 and counts[0]["backward"] == 1
     assert counts[1]["forward"] == 1 and counts[1]["backward"] == 1
-    assert len(found) == 4
+    assert len(crossings) == 4
 
 
-def test_forgetting_a_finished_track_keeps_its_counts_and_frees_its_state():
+def test_a_forgotten_track_leaves_no_state_and_keeps_the_tallies():
+    """Memory stays flat: a finished track's path state goes; the counts stay."""
     c = LineCounter([[0, 100, 640, 100]])
-    for tid in range(1, 1001):
-        _feed(c, tid, [(50, 90), (50, 110)])
-        c.forget(tid)
-    assert c.counts()[0]["forward"] == 1000
+    _feed(c, 1, [(50, 90), (50, 110)])
+    c.forget(1)
     assert not c._last and not c._counted
+    assert c.counts()[0]["forward"] == 1

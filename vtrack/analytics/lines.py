@@ -42,54 +42,49 @@ def _within_segment(line: np.ndarray, a: np.ndarray, b: np.ndarray, ca: float, c
 class LineCounter:
     """Counts track crossings of several lines, fed each track's box centres in time order.
 
-    Memory stays flat on an endless stream: `add` returns the crossings it finds instead of
-    keeping them, the counts are running totals, and `forget` drops a finished track.
-    """
+    Memory stays flat on an endless stream: the tallies are per line, the crossings are
+    returned by `add` (not kept), and a finished track's state goes with `forget`."""
 
     lines: Sequence[Sequence[float]]
     _last: dict[int, tuple[np.ndarray, list[float]]] = field(default_factory=dict)
-    _counted: set[tuple[int, int]] = field(default_factory=set)
+    _counted: dict[int, set[int]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self._lines = [np.asarray(l, dtype=float) for l in self.lines]
-        self._totals = {(k, d): 0 for k in range(len(self._lines))
-                        for d in ("forward", "backward")}
+        self._tally = np.zeros((len(self._lines), 2), dtype=np.int64)  # forward, backward
 
     def add(self, track_id: int, frame: int, time: float, center: np.ndarray) -> list[Crossing]:
         """Feed one path point of a track (frames of one track must come in order); returns
-        the crossings this step of its path makes."""
-        found = []
+        the crossings it completes."""
         p = np.asarray(center, dtype=float)
         sides = [_side(l, p) for l in self._lines]
         prev = self._last.get(track_id)
+        out: list[Crossing] = []
         if prev is not None:
             a, last_sides = prev
+            counted = self._counted.setdefault(track_id, set())
             for k, line in enumerate(self._lines):
                 ca, cb = last_sides[k], sides[k]
                 if cb == 0.0:                  # on the line: keep the side it came from
                     sides[k] = ca
                     continue
-                if ca == 0.0 or (ca < 0) == (cb < 0) or (track_id, k) in self._counted:
+                if ca == 0.0 or (ca < 0) == (cb < 0) or k in counted:
                     continue
                 if _within_segment(line, a, p, ca, cb):
-                    self._counted.add((track_id, k))
-                    found.append(Crossing(frame, time, track_id, k,
-                                          "forward" if ca < 0 else "backward"))
-                    self._totals[k, found[-1].direction] += 1
+                    counted.add(k)
+                    forward = ca < 0
+                    self._tally[k, 0 if forward else 1] += 1
+                    out.append(Crossing(frame, time, track_id, k,
+                                        "forward" if forward else "backward"))
         self._last[track_id] = (p, sides)
-        return found
+        return out
 
     def forget(self, track_id: int) -> None:
-        """Drop a track that will get no more path points (its crossings stay counted)."""
+        """Drop a finished track's state."""
         self._last.pop(track_id, None)
-        for k in range(len(self._lines)):
-            self._counted.discard((track_id, k))
+        self._counted.pop(track_id, None)
 
     def counts(self) -> list[dict]:
         """Per line: {"line": [...], "forward": n, "backward": n, "total": n}."""
-        out = []
-        for k, line in enumerate(self._lines):
-            fw, bw = self._totals[k, "forward"], self._totals[k, "backward"]
-            out.append({"line": [float(v) for v in line], "forward": fw, "backward": bw,
-                        "total": fw + bw})
-        return out
+        return [{"line": [float(v) for v in line], "forward": int(fw), "backward": int(bw),
+                 "total": int(fw + bw)} for line, (fw, bw) in zip(self._lines, self._tally)]

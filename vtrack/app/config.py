@@ -1,7 +1,8 @@
 """The one TOML config of `vtrack track` / `vtrack batch`: every parameter, with documented
 defaults (`vtrack config --defaults` prints them). Unknown sections or keys are errors.
 
-    count_lines = [[x1, y1, x2, y2], ...]     # top level
+    count_lines = [[x1, y1, x2, y2], {name, points, units}, ...]   # top level
+    [[zones]] name, polygon, units, debounce_s                      # vtrack.analytics.regions
     [detector] ...   vtrack.vision.detect.DetectorConfig
     [tracker]  ...   vtrack.tracking.tracker.TrackerConfig
     [output]   ...   OutputConfig
@@ -12,10 +13,13 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from vtrack.analytics.regions import (ZONE_DEBOUNCE_S, CountLine, Zone, check_unique_names,
+                                      parse_count_line, parse_zone)
 from vtrack.errors import InputError
 from vtrack.fileio import read_toml
 from vtrack.tracking.config import TrackerConfig
@@ -41,7 +45,8 @@ class AppConfig:
     detector: DetectorConfig = field(default_factory=DetectorConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
-    count_lines: list[list[float]] = field(default_factory=list)
+    count_lines: list[CountLine] = field(default_factory=list)
+    zones: list[Zone] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -75,32 +80,19 @@ def _coerce(where: str, value: Any, default: Any) -> Any:
     return value
 
 
-def parse_line(where: str, value: Any) -> list[float]:
-    """A counting line [x1, y1, x2, y2] of finite numbers, not of zero length."""
-    import math
-
-    if (not isinstance(value, (list, tuple)) or len(value) != 4
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-            or not all(math.isfinite(v) for v in value)):
-        raise InputError(f"{where}: a counting line is four numbers x1,y1,x2,y2")
-    line = [float(v) for v in value]
-    if line[:2] == line[2:]:
-        raise InputError(f"{where}: counting line has zero length")
-    return line
-
-
 def from_dict(data: dict[str, Any], source: str = "config") -> AppConfig:
     """Build an AppConfig from parsed TOML; unknown keys and wrong types raise InputError."""
     cfg = AppConfig()
     for key, value in data.items():
-        if key == "count_lines":
+        if key in ("count_lines", "zones"):
             if not isinstance(value, list):
-                raise InputError(f"{source}: count_lines must be a list of [x1, y1, x2, y2]")
-            cfg.count_lines = [parse_line(f"{source}: count_lines", v) for v in value]
+                raise InputError(f"{source}: {key} must be a list")
+            parse = parse_count_line if key == "count_lines" else parse_zone
+            setattr(cfg, key, [parse(f"{source}: {key}[{k}]", v) for k, v in enumerate(value)])
             continue
         if key not in SECTIONS:
             raise InputError(f"{source}: unknown key or section {key!r} "
-                             f"(known: count_lines, {', '.join(SECTIONS)})")
+                             f"(known: count_lines, zones, {', '.join(SECTIONS)})")
         if not isinstance(value, dict):
             raise InputError(f"{source}: [{key}] must be a table")
         section = getattr(cfg, key)
@@ -116,6 +108,7 @@ def from_dict(data: dict[str, Any], source: str = "config") -> AppConfig:
                 validate()
             except ValueError as exc:
                 raise InputError(f"{source}: {exc}") from None
+    check_unique_names(source, cfg.count_lines, cfg.zones)
     return cfg
 
 
@@ -138,8 +131,16 @@ def _toml_value(v: Any) -> str:
 def defaults_toml() -> str:
     """The default config as documented TOML."""
     lines = ["# vtrack configuration: every key, with its default.",
-             "# Counting lines [x1, y1, x2, y2] in pixels (also --count-line).",
-             "count_lines = []", ""]
+             "# Counting lines (also --count-line): [x1, y1, x2, y2] in pixels, or tables",
+             "# {name = \"north\", points = [[0, 0.6], [1, 0.6]], units = \"fraction\"}",
+             "# (units \"px\" by default; a fraction of the width/height, 0..1).",
+             "count_lines = []",
+             *("# " + t for t in textwrap.wrap(
+                 "Zones: [[zones]] tables with name, polygon = [[x, y], ...] (3+ vertices), "
+                 "units = \"px\" | \"fraction\" and debounce_s (default "
+                 f"{ZONE_DEBOUNCE_S}: {Zone.__dataclass_fields__['debounce_s'].metadata['help']}"
+                 ").", 90)),
+             "zones = []", ""]
     cfg = AppConfig()
     for name, cls in SECTIONS.items():
         lines.append(f"[{name}]")

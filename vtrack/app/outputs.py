@@ -24,7 +24,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from vtrack.analytics.lines import Crossing, LineCounter
+from vtrack.analytics.traffic import TrafficAnalytics
 from vtrack.fileio import GrowingFile
 from vtrack.tracking.tracker import FrameTracks
 
@@ -66,7 +66,7 @@ class Sink(Protocol):
     def frame(self, f: TrackedFrame) -> None:
         """Take one frame's output (called for every frame, in order)."""
 
-    def flush(self) -> dict[str, Any]:
+    def flush(self, final: bool = False) -> dict[str, Any]:
         """Bring the files up to date on disk; return the entries for summary.json."""
 
     def close(self) -> None:
@@ -117,7 +117,7 @@ class TracksCsv:
             self._open_ids |= new
         self._open_ids.difference_update(f.ended)
 
-    def flush(self) -> dict[str, Any]:
+    def flush(self, final: bool = False) -> dict[str, Any]:
         rows = np.concatenate([self._tail, *self._blocks])
         rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]
         cut = int(np.searchsorted(rows[:, 0], self._frame - self.max_row_lag, side="right"))
@@ -129,39 +129,21 @@ class TracksCsv:
         self.file.close()
 
 
-def _center(box: list[float]) -> np.ndarray:
-    return np.array([box[0] + box[2] / 2.0, box[1] + box[3] / 2.0])
+class TrafficSink:
+    """The traffic analytics (vtrack.analytics.traffic: crossings.csv, vehicles.csv,
+    counts.csv, zone_events.csv; summary `counts`, `zones`, `calibration`) as a sink."""
 
-
-class CrossingsCsv:
-    """crossings.csv, appended as crossings are found; summary `counts`.
-
-    A track's path is its box centres in tracks.csv (coasted rows included), fed in the
-    order the tracker emits them (a track's own rows always come in frame order).
-    """
-
-    HEADER = "frame,time_s,id,line,direction\n"
-
-    def __init__(self, path: Path, lines: list[list[float]]) -> None:
-        self.counter = LineCounter(lines)
-        self.file = GrowingFile(path, self.HEADER)
-        self._new: list[Crossing] = []
+    def __init__(self, analytics: TrafficAnalytics) -> None:
+        self.analytics = analytics
 
     def frame(self, f: TrackedFrame) -> None:
-        for frame, tid, *box, _ in f.tracks.rows.tolist():
-            frame, tid = int(frame), int(tid)
-            self._new += self.counter.add(tid, frame, f.times[frame], _center(box))
-        for tid in f.ended:
-            self.counter.forget(tid)
+        self.analytics.add_frame(f.index, f.time, f.tracks)
 
-    def flush(self) -> dict[str, Any]:
-        self.file.write([f"{c.frame},{c.time:.4f},{c.id},{c.line},{c.direction}\n".encode()
-                         for c in self._new])
-        self._new = []
-        return {"counts": self.counter.counts()}
+    def flush(self, final: bool = False) -> dict[str, Any]:
+        return self.analytics.flush(final)
 
     def close(self) -> None:
-        self.file.close()
+        """Nothing held open (the analytics append at each flush)."""
 
 
 class DetectionsCsv:
@@ -180,7 +162,7 @@ class DetectionsCsv:
     def frame(self, f: TrackedFrame) -> None:
         """Detections come through `add`."""
 
-    def flush(self) -> dict[str, Any]:
+    def flush(self, final: bool = False) -> dict[str, Any]:
         rows = np.concatenate(self._blocks) if self._blocks else np.zeros((0, 5))
         self._blocks = []
         self.file.write(final=["".join(f"{int(r[0])},-1,{r[1]:.2f},{r[2]:.2f},{r[3]:.2f},"

@@ -19,8 +19,10 @@ from typing import Any
 
 from vtrack import __version__
 from vtrack.app.config import AppConfig
-from vtrack.app.outputs import (CrossingsCsv, DetectionsCsv, FrameTimes, Sink, TrackedFrame,
-                                TrackEnds, TracksCsv)
+from vtrack.analytics.calibration import Calibration
+from vtrack.analytics.traffic import TrafficAnalytics
+from vtrack.app.outputs import (DetectionsCsv, FrameTimes, Sink, TrackedFrame, TrackEnds,
+                                TracksCsv, TrafficSink)
 from vtrack.errors import InputError
 from vtrack.fileio import replace_dir, write_json
 from vtrack.tracking.tracker import FrameTracks, Tracker
@@ -40,6 +42,8 @@ class TrackOptions:
     max_frames: int | None = None
     progress: bool = False
     save_detections: bool = False     # also write detections.csv (the detector's boxes)
+    calibration: Calibration | None = None   # ground plane: speeds, lengths, classes
+    bin_seconds: float = 60.0                 # time bin of counts.csv
     reconnect_seconds: float = 30.0   # a live source silent this long is lost (exit 2)
     flush_seconds: float = 10.0       # outputs brought up to date at least this often
     warn: Callable[[str], None] = _warn
@@ -74,7 +78,7 @@ class TrackJob:
         self.info: Any = None
         self.reader: Any = None
         self.sinks: list[Sink] = []
-        self.crossings: CrossingsCsv | None = None
+        self.analytics: TrafficAnalytics | None = None
         self.detections: DetectionsCsv | None = None
         self.frames = 0
         self.elapsed = 0.0
@@ -91,6 +95,14 @@ class TrackJob:
         self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
                                   reconnect_seconds=self.opts.reconnect_seconds)
         self.info = self.reader.info
+        try:   # a calibration for another frame size fails here, before any output
+            self.analytics = TrafficAnalytics(
+                self.out, self.info.width, self.info.height, self.info.fps,
+                self.cfg.count_lines, self.cfg.zones, self.opts.calibration,
+                self.opts.bin_seconds)
+        except BaseException:
+            self.reader.close()
+            raise
         self._prepare_out_dir()
         parts: list[Any] = []   # progress bar, video writer, rerun logger: closed at the end
         try:
@@ -159,16 +171,15 @@ class TrackJob:
         log = self.out / "decoder.log"
         if self.reader.save_decoder_log(log) and self.error:
             self.error += f" (decoder messages in {log})"
-        summary = self._flush()
+        summary = self._flush(final=True)
         for sink in self.sinks:
             sink.close()
         return summary
 
     def _sinks(self, tracker: Tracker) -> list[Sink]:
         """The per-frame consumers that own output files (add new outputs here)."""
-        self.crossings = CrossingsCsv(self.out / "crossings.csv", self.cfg.count_lines)
         sinks: list[Sink] = [TracksCsv(self.out / "tracks.csv", tracker.max_row_lag),
-                             self.crossings]
+                             TrafficSink(self.analytics)]
         if self.opts.save_detections:
             self.detections = DetectionsCsv(self.out / "detections.csv")
             sinks.append(self.detections)
@@ -203,7 +214,8 @@ class TrackJob:
         # Re-running into a folder replaces it: no stale frames, video or log from an
         # earlier run (tracks.csv, crossings.csv and summary.json are replaced at the
         # first flush).
-        for stale in ("annotated.mp4", "decoder.log", "detections.csv"):
+        for stale in ("annotated.mp4", "decoder.log", "detections.csv", "vehicles.csv",
+                      "counts.csv", "zone_events.csv", "crossings.csv"):
             (self.out / stale).unlink(missing_ok=True)
         if (self.out / "frames").exists() or self.opts.save_frames:
             replace_dir(self.out / "frames")
@@ -243,10 +255,10 @@ class TrackJob:
     def _annotate(self, frame: Any, ft: FrameTracks, dets: Any, writer: Any) -> None:
         from vtrack.vision.annotate import draw_frame, save_jpeg
 
-        counts = [(c["forward"], c["backward"]) for c in self.crossings.counter.counts()]
+        counts = self.analytics.line_counts()
         img = draw_frame(frame.image, ids=ft.ids, boxes=ft.boxes, coasted=ft.coasted,
                          trails={i: self.trails.paths.get(int(i), []) for i in ft.ids},
-                         detections=dets, lines=self.cfg.count_lines, counts=counts,
+                         detections=dets, lines=self.analytics.lines_px, counts=counts,
                          frame_index=frame.index)
         if self.opts.save_frames:
             save_jpeg(self.out / "frames" / f"{frame.index:06d}.jpg", img,
@@ -255,11 +267,12 @@ class TrackJob:
             writer.write(img, frame.time)
 
     # ------------------------------------------------------------------ writing
-    def _flush(self) -> dict[str, Any]:
-        """Bring every output file up to date, summary.json last; returns the summary."""
+    def _flush(self, final: bool = False) -> dict[str, Any]:
+        """Bring every output file up to date, summary.json last (`final`: the run is over);
+        returns the summary."""
         entries: dict[str, Any] = {"tracks": 0, "counts": []}  # before the first frame
         for sink in self.sinks:
-            entries.update(sink.flush())
+            entries.update(sink.flush(final))
         summary = {
             "video": self.source.spec,
             "frames": self.frames,

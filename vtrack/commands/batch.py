@@ -43,7 +43,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rerun", action="store_true", help="write a rerun recording tracks.rrd")
     p.add_argument("--max-frames", type=int, metavar="N", help="stop each video after N frames")
     p.add_argument("--count-line", action="append", default=[], metavar="X1,Y1,X2,Y2",
-                   help="counting line in pixels (repeatable)")
+                   help="counting line in pixels, or every value in %% of the image "
+                        "(repeatable)")
     p.add_argument("--force", action="store_true",
                    help="also re-track videos whose output is already complete")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
@@ -52,10 +53,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from vtrack.app import config
     from vtrack.batch.runner import run_batch
-    from vtrack.commands.track import parse_count_line
+    from vtrack.analytics.regions import parse_cli_line
 
     cfg = config.load(args.config)
-    cfg.count_lines = cfg.count_lines + [parse_count_line(t) for t in args.count_line]
+    cfg.count_lines = cfg.count_lines + [parse_cli_line(t) for t in args.count_line]
     from vtrack.batch.local import resource_tracker_running, stop_resource_tracker
 
     tracker_was_running = resource_tracker_running()

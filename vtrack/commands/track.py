@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
+from vtrack.analytics.regions import parse_cli_line
 from vtrack.errors import InputError
 from vtrack.vision.sources import parse_source
 
@@ -13,14 +15,14 @@ NAME = "track"
 HELP = "track vehicles in a video file, stream (rtsp/http/https) or camera (cam:N)"
 
 
-def parse_count_line(text: str) -> list[float]:
+def positive_seconds(text: str) -> float:
     try:
-        values = [float(v) for v in text.split(",")]
+        value = float(text)
     except ValueError:
-        raise InputError(f"--count-line {text!r}: expected X1,Y1,X2,Y2 (numbers)") from None
-    from vtrack.app.config import parse_line
-
-    return parse_line(f"--count-line {text!r}", values)
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"--bin-seconds {text!r}: expected a positive number of seconds")
+    return value
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -40,7 +42,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also write detections.csv: the detector's boxes per frame "
                         "(MOTChallenge detection rows frame,-1,x,y,w,h,1,-1,-1,-1)")
     p.add_argument("--count-line", action="append", default=[], metavar="X1,Y1,X2,Y2",
-                   help="counting line in pixels (repeatable)")
+                   help="counting line in pixels, or with every value in %% of the image "
+                        "(0%%,60%%,100%%,60%%); repeatable")
+    p.add_argument("--calibration", metavar="CALIB.toml",
+                   help="ground-plane calibration (4+ image points with road metres): adds "
+                        "speed, length and class to vehicles.csv and classes to counts.csv")
+    p.add_argument("--bin-seconds", type=positive_seconds, default=60.0, metavar="S",
+                   help="time bin of counts.csv, s (default 60)")
     p.add_argument("--reconnect-seconds", type=float, default=30.0, metavar="S",
                    help="live source: retry a lost connection with back-off for up to S "
                         "seconds, then stop with exit 2 (default 30)")
@@ -61,18 +69,28 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--flush-seconds must be a positive number")
     source = parse_source(args.video)
     cfg = config.load(args.config)
-    cfg.count_lines = cfg.count_lines + [parse_count_line(t) for t in args.count_line]
+    cfg.count_lines = cfg.count_lines + [parse_cli_line(t) for t in args.count_line]
+    calibration = None
+    if args.calibration:
+        from vtrack.analytics.calibration import load_calibration
+
+        calibration = load_calibration(args.calibration)
     out = Path(args.out) if args.out else Path("runs") / source.stem
     opts = TrackOptions(save_frames=args.save_frames, save_video=args.save_video,
                         rerun=args.rerun, rerun_spawn=args.rerun_spawn,
                         max_frames=args.max_frames, save_detections=args.save_detections,
                         progress=not args.quiet and sys.stdout.isatty(),
                         reconnect_seconds=args.reconnect_seconds,
-                        flush_seconds=args.flush_seconds)
+                        flush_seconds=args.flush_seconds,
+                        calibration=calibration, bin_seconds=args.bin_seconds)
     summary = track_video(source.spec, out, cfg, opts)
     if not args.quiet:
-        counts = ", ".join(f"line {k}: {c['forward']} fwd / {c['backward']} bwd"
-                           for k, c in enumerate(summary["counts"]))
+        counts = ", ".join(f"line {c.get('name', k)}: {c['forward']} fwd / "
+                           f"{c['backward']} bwd" for k, c in enumerate(summary["counts"]))
         print(f"{summary['frames']} frames, {summary['tracks']} tracks, "
               f"{summary['fps_processed']} fps -> {out}" + (f"; {counts}" if counts else ""))
+        cal = summary.get("calibration")
+        if cal:
+            print(f"calibration {cal['file']}: {cal['points']} points, reprojection error "
+                  f"{cal['reprojection_rms_px']:.2f} px RMS ({cal['world_rms_m']:.3f} m)")
     return 0

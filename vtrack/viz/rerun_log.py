@@ -95,9 +95,11 @@ class TrackLogger:
         rec.log("metrics/tracks", rr.SeriesLines(names="confirmed tracks"), static=True)
         rec.log("metrics/detections", rr.SeriesLines(names="detections"), static=True)
         if cfg.count_lines:
+            px = [l.pixels(info.width, info.height) for l in cfg.count_lines]
             rec.log("camera/count_lines",
-                    rr.LineStrips2D([[l[:2], l[2:]] for l in cfg.count_lines],
-                                    labels=[f"line {k}" for k in range(len(cfg.count_lines))],
+                    rr.LineStrips2D([[l[:2], l[2:]] for l in px],
+                                    labels=[f"line {l.name or k}"
+                                            for k, l in enumerate(cfg.count_lines)],
                                     colors=(255, 255, 0)), static=True)
 
     def _time(self, frame: int, t: float | None = None) -> None:

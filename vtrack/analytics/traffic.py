@@ -1,0 +1,196 @@
+"""The traffic analytics of one run: fed the tracker's output frame by frame, writes
+vehicles.csv, counts.csv, crossings.csv and zone_events.csv and gives summary.json its
+`counts`, `zones` and `calibration` keys.
+
+Paths (lines and zones) use the rows of tracks.csv (FrameTracks.rows, some of which arrive
+late: back-filled at confirmation, or coasted rows reported at re-acquisition); speeds and
+lengths use the filtered states of the frame (FrameTracks.states). A track is over when its id
+leaves FrameTracks.ids (the tracker reports all of a track's rows by then); its vehicles.csv
+row, zone stays and binned counts are then final and its accumulators are dropped, so memory
+stays flat on an endless stream. `flush` creates the files (header first, atomically) and
+afterwards only appends the rows that became final, so a periodic flush never rewrites a
+growing file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vtrack.analytics.bins import CountBins
+from vtrack.analytics.calibration import Calibration
+from vtrack.analytics.camera import camera_from_homography
+from vtrack.analytics.ground import (contact_points, contact_velocities, footprint_samples,
+                                     speed_sigmas)
+from vtrack.analytics.lines import LineCounter
+from vtrack.analytics.regions import CountLine, Zone
+from vtrack.analytics.vehicles import (CLASSES, MIN_LENGTH_SPEED, SPEED_SIGMA_MAX,
+                                       VehicleRecord)
+from vtrack.analytics.zones import ZoneCounter
+from vtrack.fileio import append_csv, write_csv
+from vtrack.tracking.tracker import FrameTracks
+
+HEADERS = {
+    "vehicles.csv": ["id", "first_frame", "last_frame", "first_time_s", "last_time_s",
+                     "detected_frames", "speed_mean_kmh", "speed_max_kmh", "length_m", "class"],
+    "counts.csv": ["bin_start_s", "bin_end_s", "line", "direction", "class", "count"],
+    "crossings.csv": ["frame", "time_s", "id", "line", "direction"],
+    "zone_events.csv": ["id", "zone", "enter_frame", "exit_frame", "enter_time_s", "dwell_s"],
+}
+TIME_HORIZON_FRAMES = 8192
+BORDER_MARGIN = 0.01         # a box this close to the image border (fraction of the image's
+                             # larger side) may be cut by it: no speed or length from it   # frame times remembered for rows that arrive late
+
+
+class TrafficAnalytics:
+    """Lines, zones, calibration and time bins of one run written into `out_dir`."""
+
+    def __init__(self, out_dir: str | Path, width: int, height: int, fps: float,
+                 lines: Sequence[CountLine] = (), zones: Sequence[Zone] = (),
+                 calibration: Calibration | None = None, bin_seconds: float = 60.0,
+                 bin_settle_s: float = 120.0) -> None:
+        if calibration is not None:
+            calibration.check_frame_size(width, height)
+        self.out = Path(out_dir)
+        self.width, self.height = width, height
+        self.fps = fps if fps > 0 else 25.0
+        self.lines = list(lines)
+        self.lines_px = [l.pixels(width, height) for l in self.lines]
+        self.counter = LineCounter(self.lines_px)
+        self.zones = ZoneCounter([z.name for z in zones],
+                                 [z.pixels(width, height) for z in zones],
+                                 [z.debounce_s for z in zones])
+        self.calibration = calibration
+        self.camera = (camera_from_homography(calibration.H, width, height)
+                       if calibration is not None else None)
+        self.bins = CountBins(bin_seconds, [l.name or str(k) for k, l in enumerate(self.lines)],
+                              CLASSES if calibration is not None else ("all",), bin_settle_s)
+        self.vehicles: dict[int, VehicleRecord] = {}
+        self._times: dict[int, float] = {}
+        self._pending: dict[str, list[list]] = {name: [] for name in HEADERS}
+        self._created = False
+        self.frame, self.time = 0, 0.0
+
+    # ------------------------------------------------------------------- feeding
+    def add_frame(self, frame: int, time: float, ft: FrameTracks) -> None:
+        """One processed frame: its time (s), the tracks and the rows the tracker emitted."""
+        self.frame, self.time = frame, time
+        self.bins.start(time)
+        self._times[frame] = time
+        if len(self._times) > TIME_HORIZON_FRAMES:
+            del self._times[next(iter(self._times))]
+        rows = ft.rows[np.lexsort((ft.rows[:, 0], ft.rows[:, 1]))] if len(ft.rows) else ft.rows
+        for r in rows:
+            self._add_row(int(r[0]), int(r[1]), r[2:6], bool(r[6] >= 1.0))
+        if self.calibration is not None and len(ft.ids):
+            self._sample(ft)
+        alive = set(ft.ids.tolist())
+        for tid in [t for t in self.vehicles if t not in alive]:
+            self._finish(tid)
+
+    def _time_of(self, frame: int) -> float:
+        t = self._times.get(frame)
+        return t if t is not None else self.time - (self.frame - frame) / self.fps
+
+    def _record(self, tid: int, frame: int, time: float) -> VehicleRecord:
+        rec = self.vehicles.get(tid)
+        if rec is None:
+            rec = self.vehicles[tid] = VehicleRecord(tid, frame, time, frame, time)
+        return rec
+
+    def _add_row(self, frame: int, tid: int, box: np.ndarray, detected: bool) -> None:
+        t = self._time_of(frame)
+        rec = self._record(tid, frame, t)
+        rec.add_row(frame, t, detected)
+        x, y, w, h = (float(v) for v in box)
+        for c in self.counter.add(tid, frame, t, np.array([x + w / 2, y + h / 2])):
+            rec.crossings.append((c.time, c.line, c.direction))
+            self._pending["crossings.csv"].append(
+                [c.frame, f"{c.time:.4f}", c.id, self._label(c.line), c.direction])
+        for ev in self.zones.add(tid, frame, t, np.array([x + w / 2, y + h])):
+            self._pending["zone_events.csv"].append(ev.row())
+
+    def _label(self, line: int) -> str | int:
+        return self.lines[line].name or line
+
+    def _sample(self, ft: FrameTracks) -> None:
+        """Speed and length samples of the detected tracks (vehicles.py, ground.py)."""
+        det = ~np.asarray(ft.coasted, dtype=bool)
+        if not det.any():
+            return
+        states, boxes, rates = ft.states[det], ft.boxes[det], ft.size_rates[det]
+        g = contact_points(states, boxes)
+        g_dot = contact_velocities(states, rates)
+        v = self.calibration.ground_velocity(g, g_dot)            # J_H(g) g', m/s
+        speed = np.hypot(v[:, 0], v[:, 1])
+        sigma = speed_sigmas(self.calibration, g, v, ft.covariances[det])
+        length, k = footprint_samples(self.calibration, self.camera, boxes, v)
+        m = BORDER_MARGIN * max(self.width, self.height)
+        border = ((boxes[:, 0] <= m) | (boxes[:, 1] <= m)
+                  | (boxes[:, 0] + boxes[:, 2] >= self.width - m)
+                  | (boxes[:, 1] + boxes[:, 3] >= self.height - m))
+        good = ~border & (sigma <= SPEED_SIGMA_MAX)
+        for i, tid in enumerate(ft.ids[det]):
+            if not np.isfinite(speed[i]):
+                continue
+            rec = self._record(int(tid), self.frame, self.time)
+            s = rec.good if good[i] else rec.other
+            s.speed.add(self.time, float(speed[i]))
+            if speed[i] >= MIN_LENGTH_SPEED and np.isfinite(length[i]):
+                s.length.add(float(length[i]), float(k[i]))
+
+    def _finish(self, tid: int) -> None:
+        rec = self.vehicles.pop(tid)
+        self.counter.forget(tid)
+        self._pending["zone_events.csv"].extend(ev.row() for ev in self.zones.end_track(tid))
+        calibrated = self.calibration is not None
+        cls = (rec.figures()[3] or "unknown") if calibrated else "all"
+        for time, line, direction in rec.crossings:
+            self.bins.add(time, line, direction, cls)
+        self._pending["vehicles.csv"].append(rec.row(calibrated))
+
+    # ------------------------------------------------------------------- writing
+    def line_counts(self) -> list[tuple[int, int]]:
+        """(forward, backward) per line so far (for the annotated frames)."""
+        return [(c["forward"], c["backward"]) for c in self.counter.counts()]
+
+    def flush(self, final: bool = False) -> dict[str, Any]:
+        """Write what became final since the last flush (all of it with `final`: the run is
+        over and live tracks end here); returns summary.json's `counts`, `zones`,
+        `bin_seconds` and, when calibrated, `calibration`."""
+        if final:
+            for tid in list(self.vehicles):
+                self._finish(tid)
+            self._pending["counts.csv"] += self.bins.pop_final(
+                self.time, None, run_end=self.time + 1.0 / self.fps)
+        else:
+            pending = [t for rec in self.vehicles.values() for t, _, _ in rec.crossings]
+            self._pending["counts.csv"] += self.bins.pop_final(
+                self.time, min(pending) if pending else None)
+        for name, header in HEADERS.items():
+            rows, self._pending[name] = self._pending[name], []
+            if self._created:
+                append_csv(self.out / name, rows)
+            else:
+                write_csv(self.out / name, rows, header=header)
+        self._created = True
+        return self.summary()
+
+    def summary(self) -> dict[str, Any]:
+        """summary.json's analytics keys as of now (counts[i] gains "name" if named)."""
+        counts = self.counter.counts()
+        for line, c in zip(self.lines, counts):
+            if line.name:
+                c["name"] = line.name
+        out: dict[str, Any] = {"counts": counts, "zones": self.zones.summary(),
+                               "bin_seconds": self.bins.bin_seconds}
+        if self.calibration is not None:
+            cal = {"file": self.calibration.source, **self.calibration.errors()}
+            if self.camera is not None:
+                cal["camera_height_m"] = round(self.camera.height, 3)
+                cal["focal_px"] = round(self.camera.focal, 1)
+            out["calibration"] = cal
+        return out
