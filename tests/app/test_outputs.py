@@ -1,5 +1,6 @@
 """Output sinks: tracks.csv through the reorder buffer (sorted, appended, never rewritten
-from the start), crossings.csv appended, and state that stays flat on an endless run."""
+from the start), crossings.csv appended (by the traffic analytics' sink), and state that
+stays flat on an endless run."""
 
 from __future__ import annotations
 
@@ -8,7 +9,9 @@ import os
 import numpy as np
 import pytest
 
-from vtrack.app.outputs import (CrossingsCsv, FrameTimes, TrackedFrame, TrackEnds, TracksCsv,
+from vtrack.analytics.regions import CountLine
+from vtrack.analytics.traffic import TrafficAnalytics
+from vtrack.app.outputs import (FrameTimes, TrackedFrame, TrackEnds, TracksCsv, TrafficSink,
                                 mot_lines)
 from vtrack.app.track import Trails
 from vtrack.fileio import GrowingFile
@@ -57,7 +60,8 @@ def _run(tmp_path, frames: int, flush_every: int, check=None):
     """Feed FakeTracker's frames to the sinks, flushing every `flush_every` frames (then
     `check(sinks)`); returns the sinks, TrackEnds, all rows emitted and the last summary."""
     tracks = TracksCsv(tmp_path / "tracks.csv", LAG)
-    crossings = CrossingsCsv(tmp_path / "crossings.csv", [[320, 0, 320, 360]])
+    crossings = TrafficSink(TrafficAnalytics(tmp_path, 640, 360, 25.0,
+                                             [CountLine(((320.0, 0.0), (320.0, 360.0)))]))
     times, ends, trails = FrameTimes(LAG + 1), TrackEnds(), Trails(10)
     fake, emitted = FakeTracker(), []
     for n in range(1, frames + 1):
@@ -73,7 +77,7 @@ def _run(tmp_path, frames: int, flush_every: int, check=None):
             crossings.flush()
             if check:
                 check(tracks)
-    summary = {**tracks.flush(), **crossings.flush()}
+    summary = {**tracks.flush(final=True), **crossings.flush(final=True)}
     return tracks, crossings, trails, ends, np.concatenate(emitted), summary
 
 
@@ -114,7 +118,9 @@ def test_state_stays_flat_on_a_long_run(tmp_path):
     assert vehicles > 1150 and summary["tracks"] == vehicles
     assert vehicles - 2 <= summary["counts"][0]["total"] <= vehicles   # the last may not yet
     assert len(tracks._open_ids) <= 7 and tracks._tail[:, 0].min() > 6000 - LAG
-    assert len(crossings.counter._last) <= 7 and len(crossings.counter._counted) <= 7
+    counter = crossings.analytics.counter
+    assert len(counter._last) <= 7 and len(counter._counted) <= 7
+    assert len(crossings.analytics.vehicles) <= 7
     assert len(trails.paths) <= 7 and len(ends._active) <= 7
 
 
