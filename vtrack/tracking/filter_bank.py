@@ -8,12 +8,16 @@ The process noise is scale-free: the white-jerk density is `jerk` box scales^2 /
 q_j = jerk * L^2 for a track whose box scale is L px (a far vehicle small in the image
 manoeuvres in fewer pixels than a near one).
 
-The adaptive kinds of the core (ankf1, ankf2, fuzzy-r, fuzzy-q, siim-ekf) run one core
-filter object per track on the position rows and adapt their own noise from the
-innovations.
+The adaptive kinds (vtrack.adaptive: ankf1, ankf2, fuzzy-r, fuzzy-q, siim-ekf) keep one
+filter object per track for what they adapt (their innovation windows, noise scales); the
+state stays in the track table: each step hands the object the track's (x, P) and takes
+the result back, so there is one copy of every track's state.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from vtrack.estimation.filters import GaussianFilter
@@ -67,13 +71,14 @@ class FilterBank:
         for u in uids:
             self._objects.pop(int(u), None)
 
-    def warp(self, tracks: TrackTable, m: np.ndarray) -> None:
-        """Move every track with the camera (see TrackTable.warp)."""
-        tracks.warp(m)
-        for i, uid in enumerate(tracks.uid):
-            f = self._objects.get(int(uid))
-            if f is not None:
-                f.x, f.P = tracks.x[i].copy(), tracks.P[i].copy()
+    def _step(self, tracks: TrackTable, i: int, step: Callable[[GaussianFilter], Any]
+              ) -> Any:
+        """Run `step` on track i's adaptive filter object with the track's (x, P)."""
+        f = self._objects[int(tracks.uid[i])]
+        f.x, f.P = tracks.x[i].copy(), tracks.P[i].copy()
+        out = step(f)
+        tracks.x[i], tracks.P[i] = f.x, f.P
+        return out
 
     def predict(self, tracks: TrackTable, dt: float) -> None:
         """Propagate every track over dt (s) with the white-jerk model (seed 001 eqs. 21-23)."""
@@ -84,10 +89,8 @@ class FilterBank:
             tracks.x, tracks.P = kf_predict(tracks.x, tracks.P, self.model.transition(dt),
                                             q[:, None, None] * self.model.Q(dt))
             return
-        for i, uid in enumerate(tracks.uid):
-            f = self._objects[int(uid)]
-            f.predict(dt)
-            tracks.x[i], tracks.P[i] = f.x, f.P
+        for i in range(len(tracks)):
+            self._step(tracks, i, lambda f: f.predict(dt))
 
     def update(self, tracks: TrackTable, idx: np.ndarray, z: np.ndarray, H: np.ndarray,
                R: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -107,8 +110,6 @@ class FilterBank:
                         ) -> np.ndarray:
         nis = np.zeros(len(idx))
         for j, (i, zi) in enumerate(zip(idx, z[:, :2], strict=True)):
-            f = self._objects[int(tracks.uid[i])]
-            innov = f.update(zi)
+            innov = self._step(tracks, i, lambda f, zi=zi: f.update(zi))
             nis[j] = float(innov.nis) if innov is not None else np.nan
-            tracks.x[i], tracks.P[i] = f.x, f.P
         return nis

@@ -102,7 +102,7 @@ class Tracker:
         self.t_prev = t
         tracks = self.tracks
         if motion is not None and len(tracks) and not np.allclose(motion, _IDENTITY):
-            self.bank.warp(tracks, motion)
+            tracks.warp(motion)
         growth = self.field.log_rate(tracks.x[:, :2], tracks.x[:, 2:4])
         self.bank.predict(tracks, dt)
         tracks.s, tracks.Ps = self.sizes.predict(tracks.s, tracks.Ps, dt, growth)
