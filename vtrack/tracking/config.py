@@ -67,9 +67,9 @@ class TrackerConfig:
     confirm_fraction: float = field(default=0.75, metadata=_h(
         "share of the confirmation window's frames with a detection"))
     confirm_motion: float = field(default=0.5, metadata=_h(
-        "a track is confirmed only once its detected centre has moved this many box scales "
-        "from where it was first seen: a vehicle moves, swaying leaves and flicker stay put "
-        "(0 turns the check off)"))
+        "a track is confirmed only once an edge of its detected box has moved this many box "
+        "scales from where it was first seen: a vehicle moves, swaying leaves and flicker "
+        "stay put (0 turns the check off)"))
     max_coast_seconds: float = field(default=1.0, metadata=_h(
         "time a confirmed track coasts on its prediction without a detection before it is "
         "deleted, s"))

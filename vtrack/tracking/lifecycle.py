@@ -36,16 +36,17 @@ class Initiator:
             free[idx[covered]] = False
         return np.flatnonzero(free)
 
-    def table(self, t: float, centers: np.ndarray, x0: np.ndarray, P0: np.ndarray,
+    def table(self, t: float, boxes: np.ndarray, x0: np.ndarray, P0: np.ndarray,
               s0: np.ndarray, Ps0: np.ndarray) -> TrackTable:
-        """Tentative tracks with priors (x0, P0) and box sizes (s0, Ps0), first seen at
-        `centers` at time t (their first detection is not assimilated yet)."""
-        k = len(centers)
+        """Tentative tracks with priors (x0, P0) and box sizes (s0, Ps0), first seen as
+        `boxes` (x, y, w, h) at time t (their first detection is not assimilated yet)."""
+        k = len(boxes)
         table = TrackTable.empty()
         table.x, table.P, table.s, table.Ps = x0, P0, s0, Ps0
         table.mismatch_t, table.mismatch_sign = np.full((k, 2), np.nan), np.zeros((k, 2))
         table.ref_p, table.ref_s = np.zeros((k, 2)), np.full(k, np.nan)
-        table.origin = centers.copy()
+        table.origin = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
+        table.last_box = table.origin.copy()
         table.hist_p = np.zeros((k, 3, 2))
         table.hist_t = np.full((k, 3), t)
         table.hist_s = np.zeros((k, 3, 2))

@@ -160,7 +160,7 @@ class Tracker:
         var = np.repeat(detection_sigma(self.cfg, scale)[:, None] ** 2, 2, axis=1)
         x0, P0 = self.bank.prior(centers, scale)
         s0, Ps0 = self.sizes.initial(boxes[:, 2:], self.cfg.init_size_rate_sigma)
-        new = self.initiator.table(t, centers, x0, P0, s0, Ps0)
+        new = self.initiator.table(t, boxes, x0, P0, s0, Ps0)
         self.bank.start(new.uid, x0, var, scale)
         self.tracks.append(new)
 
@@ -212,6 +212,7 @@ class Tracker:
             hist[mt, 1:] = hist[mt, :-1]  # fancy indexing copies before the write
             hist[mt, 0] = newest
         tracks.count[mt] = np.minimum(tracks.count[mt] + 1, 3)
+        tracks.last_box[mt] = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
         z, Hm, R, mask = measurement_model(tracks.hist_p[mt], tracks.hist_t[mt],
                                            tracks.count[mt], tracks.hist_s[mt], cfg.measurement)
         return self.bank.update(tracks, mt, z, Hm, R, mask)
