@@ -107,10 +107,12 @@ class Confirmer:
 
     def confirm(self, tracks: TrackTable, hit: np.ndarray, eligible: np.ndarray) -> None:
         """Give an id to each tentative, `eligible` track detected this frame with M hits in
-        its window whose detected centre has moved `confirm_motion` box scales from where
-        it was first seen."""
+        its window that moves: an edge of its detected box has moved `confirm_motion` box
+        scales from where it was first seen (an edge, not the centre: a big vehicle coming
+        into view at the image border grows there, its centre moves at half its speed;
+        swaying leaves and flicker go nowhere)."""
         cfg = self.cfg
-        moved = (np.hypot(*(tracks.hist_p[:, 0] - tracks.origin).T)
+        moved = (np.abs(tracks.last_box - tracks.origin).max(axis=1)
                  >= cfg.confirm_motion * tracks.scale)
         ready = ((tracks.id == 0) & eligible & hit & moved
                  & (np.bitwise_count(tracks.hitmask) >= self.hits))
