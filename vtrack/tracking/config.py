@@ -44,6 +44,9 @@ class TrackerConfig:
         "chi-square gate on the predicted position (2 dof)"))
     max_gate: float = field(default=2.5, metadata=_h(
         "upper bound of the gate's Euclidean radius, box scales"))
+    scale_field: bool = field(default=True, metadata=_h(
+        "learn how a vehicle's image size changes with its position (scale_field.py) and "
+        "predict each box's growth from its motion; false: sizes change only by their rates"))
     size_psd: float = field(default=0.01, metadata=_h(
         "white-noise acceleration density of the log box size, 1/s^3 (box_size.py)"))
     size_rate_seconds: float = field(default=1.0, metadata=_h(

@@ -103,7 +103,8 @@ class Tracker:
         tracks = self.tracks
         if motion is not None and len(tracks) and not np.allclose(motion, _IDENTITY):
             tracks.warp(motion)
-        growth = self.field.log_rate(tracks.x[:, :2], tracks.x[:, 2:4])
+        growth = (self.field.log_rate(tracks.x[:, :2], tracks.x[:, 2:4])
+                  if self.cfg.scale_field else np.zeros(len(tracks)))
         self.bank.predict(tracks, dt)
         tracks.s, tracks.Ps = self.sizes.predict(tracks.s, tracks.Ps, dt, growth)
         conf = tracks.id > 0
