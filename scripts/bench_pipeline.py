@@ -1,8 +1,10 @@
 """Tracked fps divided by decode-only fps on a 1280x720 MJPG video from `vtrack synth`,
-measured in one run. Start-up (process spawn, model set-up) is excluded by subtracting a
-one-frame run from each timing.
+measured in one run, and what each stage of the detector and the tracker costs per frame.
+Start-up (process spawn, model set-up) is excluded by subtracting a one-frame run from each
+timing; the tracked run includes the second read of the video's first seconds that
+estimates the background.
 
-    .venv/bin/python scripts/bench_pipeline.py [--frames 300] [--config CFG.toml]
+    .venv/bin/python scripts/bench_pipeline.py [--frames 300] [--scene mast] [--config CFG]
 """
 
 from __future__ import annotations
@@ -10,11 +12,16 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from vtrack.app import config
-from vtrack.sim.traffic import render_scene
-from vtrack.app.track import TrackOptions, track_video
+from vtrack.app.track import TrackJob, TrackOptions, track_video
+from vtrack.tracking.tracker import Tracker
+from vtrack.vision import detect as detect_module
+from vtrack.vision.detect import MotionDetector
 from vtrack.vision.video import VideoReader
 
 
@@ -32,25 +39,90 @@ def _track(video: Path, out: Path, cfg: config.AppConfig, frames: int) -> float:
     return time.perf_counter() - t0
 
 
+class StageTimes:
+    """Wall time per named stage, summed over the frames."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = defaultdict(float)
+
+    def wrap(self, name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                self.seconds[name] += time.perf_counter() - t0
+        return timed
+
+
+def stage_costs(video: Path, cfg: config.AppConfig, frames: int) -> tuple[StageTimes, int]:
+    """Run detector and tracker in process with every stage timed."""
+    times = StageTimes()
+    job = TrackJob(video, "/nonexistent", cfg, TrackOptions(max_frames=frames))
+    reader = VideoReader(video, max_frames=frames)
+    job.info = info = reader.info
+    det = MotionDetector(cfg.detector, info.width, info.height, info.fps)
+    t0 = time.perf_counter()
+    det.initialise(job._background_samples())
+    times.seconds["background estimate (2nd read)"] += time.perf_counter() - t0
+    det.prepare = times.wrap("prepare (downscale, blur)", det.prepare)
+    if det.stabiliser is not None:
+        det.stabiliser = times.wrap("stabilise", det.stabiliser)
+    if det.gain is not None:
+        det.gain = times.wrap("gain compensation", det.gain)
+    det.background.apply = times.wrap("MOG2", det.background.apply)
+    det.clean = times.wrap("morphology", det.clean)
+    if det.motion is not None:
+        det.motion = times.wrap("motion map", det.motion)
+    for name, stage in (("shadows", "textured_shadow"), ("blobs", "find_blobs")):
+        setattr(detect_module, stage, times.wrap(name, getattr(detect_module, stage)))
+    det._split = times.wrap("split merged blobs", det._split)
+    tracker = Tracker(cfg.tracker, info.width, info.height, info.fps)
+    predict = times.wrap("tracker predict", tracker.predict)
+    update = times.wrap("tracker update", tracker.update)
+    n = 0
+    with reader:
+        for frame in reader:
+            dets = det.detect(frame.image, lambda m, t=frame.time: predict(t, m))
+            update(frame.index, frame.time, dets.centers, dets.boxes)
+            n += 1
+    return times, n
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument("--scene", default="mast", help="synthetic scene (default mast: a "
+                    "swaying camera, shadows, perspective)")
     ap.add_argument("--config", help="TOML config for the tracked run (default config if absent)")
     args = ap.parse_args()
     cfg = config.load(args.config)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        render_scene(tmp / "synth", frames=args.frames, vehicles=20, width=1280, height=720,
-                     fps=25.0, seed=0)
+        if args.scene == "overhead":
+            from vtrack.sim.traffic import render_scene
+
+            render_scene(tmp / "synth", frames=args.frames, vehicles=20, width=1280,
+                         height=720, fps=25.0, seed=0)
+        else:
+            from vtrack.sim.clip import render_preset
+            from vtrack.sim.nuisance import parse_nuisances
+
+            render_preset(tmp / "synth", args.scene, frames=args.frames, width=1280,
+                          height=720, fps=25.0, seed=0, nuisances=parse_nuisances("all"))
         video = tmp / "synth" / "video.avi"
         n = args.frames - 1
         decode = _decode(video, args.frames) - _decode(video, 1)
         track = _track(video, tmp / "out", cfg, args.frames) - _track(video, tmp / "o1", cfg, 1)
-    print(f"video: 1280x720 MJPG (vtrack synth), {args.frames} frames; "
+        stages, frames = stage_costs(video, cfg, args.frames)
+    print(f"video: 1280x720 MJPG (vtrack synth --scene {args.scene}), {args.frames} frames; "
           f"detect_width {cfg.detector.detect_width}")
     print(f"decode only : {n / decode:8.1f} fps")
     print(f"tracked     : {n / track:8.1f} fps")
     print(f"ratio tracked/decode: {decode / track:.3f}")
+    print(f"per frame (in-process, {frames} frames):")
+    for name, sec in sorted(stages.seconds.items(), key=lambda kv: -kv[1]):
+        print(f"  {name:<34}{1000 * sec / frames:7.2f} ms")
 
 
 if __name__ == "__main__":

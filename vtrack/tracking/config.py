@@ -79,7 +79,7 @@ class TrackerConfig:
     stand_speed: float = field(default=0.3, metadata=_h(
         "a confirmed track that loses its detection while slower than this (box scales/s) "
         "is a standing vehicle -- queued, parked, waiting at a light -- which the background "
-        "model absorbs and the motion check drops: it is held where it stopped"))
+        "model absorbs and the motion check drops: it is held where it stopped (0: off)"))
     max_stand_seconds: float = field(default=60.0, metadata=_h(
         "time a standing vehicle is held without a detection, s; when it drives off, the "
         "detection that appears in its box takes it up again (same id)"))
@@ -100,8 +100,7 @@ class TrackerConfig:
             raise ValueError(f"tracker.measurement must be one of {', '.join(MEASUREMENTS)}")
         for name in ("jerk", "detection_sigma", "init_speed_sigma", "init_accel_sigma",
                      "max_gate", "split_evidence", "size_psd", "size_sigma",
-                     "init_size_rate_sigma", "size_rate_seconds", "size_shrink_seconds", "stand_speed",
-                     "max_stand_seconds", "confirm_seconds", "max_coast_seconds",
+                     "init_size_rate_sigma", "size_rate_seconds", "size_shrink_seconds", "max_stand_seconds", "confirm_seconds", "max_coast_seconds",
                      "tentative_coast_seconds"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"tracker.{name} must be positive")
@@ -110,6 +109,6 @@ class TrackerConfig:
                 raise ValueError(f"tracker.{name} must be in (0, 1)")
         if not 0 < self.confirm_fraction <= 1:
             raise ValueError("tracker.confirm_fraction must be in (0, 1]")
-        for name in ("confirm_motion", "edge_margin", "size_grow_seconds"):
+        for name in ("confirm_motion", "edge_margin", "size_grow_seconds", "stand_speed"):
             if getattr(self, name) < 0:
                 raise ValueError(f"tracker.{name} must be >= 0")

