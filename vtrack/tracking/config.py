@@ -76,8 +76,9 @@ class TrackerConfig:
     max_coast_seconds: float = field(default=1.0, metadata=_h(
         "time a confirmed track coasts on its prediction without a detection before it is "
         "deleted, s"))
-    stand_speed: float = field(default=0.3, metadata=_h(
-        "a confirmed track that loses its detection while slower than this (box scales/s) "
+    stand_speed: float = field(default=0.8, metadata=_h(
+        "a confirmed track that loses its detection while slower than this, its speed's "
+        "standard deviation included (box scales/s) "
         "is a standing vehicle -- queued, parked, waiting at a light -- which the background "
         "model absorbs and the motion check drops: it is held where it stopped (0: off)"))
     max_stand_seconds: float = field(default=60.0, metadata=_h(

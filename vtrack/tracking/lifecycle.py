@@ -65,13 +65,14 @@ class Initiator:
 def record_hits(tracks: TrackTable, hit: np.ndarray, window: int, stand_speed: float
                 ) -> None:
     """Shift this frame's hits into each track's hit mask and count its misses; a confirmed
-    track without a detection that surely moves slower than stand_speed (box scales/s; its
-    speed plus two standard deviations) is standing: it is held where it stopped (velocity
-    and acceleration set to 0) until a detection takes it up again."""
+    track without a detection whose speed plus its standard deviation is under stand_speed
+    (box scales/s; a track whose speed is not yet known does not qualify) is standing: it
+    is held where it stopped (velocity and acceleration set to 0) until a detection takes
+    it up again."""
     tracks.hitmask = ((tracks.hitmask << 1) | hit) & ((1 << window) - 1)
     tracks.misses = np.where(hit, 0, tracks.misses + 1)
     sd = np.sqrt(tracks.P[:, 2, 2] + tracks.P[:, 3, 3])
-    slow = np.hypot(tracks.x[:, 2], tracks.x[:, 3]) + 2 * sd < stand_speed * tracks.scale
+    slow = np.hypot(tracks.x[:, 2], tracks.x[:, 3]) + sd < stand_speed * tracks.scale
     stops = (tracks.id > 0) & ~hit & ~tracks.standing & slow
     tracks.x[stops, 2:] = 0.0
     tracks.standing = (tracks.standing | stops) & ~hit

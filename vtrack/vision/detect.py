@@ -66,9 +66,10 @@ class DetectorConfig:
     detect_shadows: bool = _f(True, "let MOG2 label shadows (127): those whose texture is "
                                      "the road's are dropped, textured ones (dark vehicle "
                                      "parts) kept (shadows.py)")
-    shadow_texture: float = _f(0.06, "std of the frame / background ratio over 5x5 pixels "
-                                     "above which a shadow-labelled pixel is a vehicle's; "
-                                     "0: drop every shadow-labelled pixel")
+    shadow_texture: float = _f(0.5, "a shadow-labelled pixel whose local texture (5x5 std) "
+                                    "differs from the background's dimmed by the shadow by "
+                                    "more than this fraction is a vehicle's (shadows.py); "
+                                    "0: drop every shadow-labelled pixel")
     shadow_ratio: float = _f(0.5, "MOG2 shadow threshold tau: darker than this is not shadow")
     shadow_threshold: int = _f(200, "mask values below this (MOG2 shadows are 127) are dropped")
     detect_width: int = _f(640, "frames wider than this are halved (INTER_AREA) until they "

@@ -4,13 +4,11 @@ MOG2 (with shadow detection) labels a pixel shadow (127) when it is a darker cop
 background: brightness ratio between tau (`shadow_ratio`) and 1 at about the background's
 chromaticity (Prati et al. 2003, the "deterministic non-model" test). A dark grey vehicle
 on grey asphalt passes that test too. What tells them apart is texture: a shadow darkens
-the road it falls on by one factor, so the ratio frame / background is smooth across it and
-the road's own texture shows through, while a vehicle brings outlines, windows and lights of
-its own (Sanin et al. 2012 review texture tests for this reason). Per shadow-labelled pixel
-the standard deviation of the ratio over the shadow-labelled pixels of a `window` x `window`
-box (so that a vehicle's edge next to its shadow does not count as texture) is compared
-with `texture`: below it the pixel is shadow and dropped, above it the pixel is kept as
-foreground.
+the road it falls on by one factor r, so the road's own texture shows through, dimmed --
+the frame's local standard deviation is r times the background's -- while a vehicle brings
+its own: smooth paint over grainy asphalt loses the road's texture, outlines, windows and
+lights add texture where the road had none (Sanin et al. 2012 review texture tests). Pixels that fail the test are kept
+as foreground, the others dropped as shadow (`texture`, relative; `NOISE_GREY` absolute).
 """
 
 from __future__ import annotations
@@ -18,7 +16,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-SHADOW = 127  # MOG2's shadow label
+SHADOW = 127      # MOG2's shadow label
+NOISE_GREY = 3.0  # differences of local standard deviation under this are sensor noise
 
 
 def drop_shadows(raw: np.ndarray, threshold: int) -> np.ndarray:
@@ -29,24 +28,26 @@ def drop_shadows(raw: np.ndarray, threshold: int) -> np.ndarray:
 
 def textured_shadow(raw: np.ndarray, frame: np.ndarray, background: np.ndarray,
                     texture: float, window: int = 5) -> np.ndarray:
-    """Binary mask (0/255): MOG2's foreground plus the shadow-labelled pixels whose
-    frame / background ratio is not smooth (std over the window above `texture`): parts of
-    vehicles MOG2 took for shadow."""
+    """Binary mask (0/255): MOG2's foreground plus the shadow-labelled pixels whose local
+    texture is not the background's dimmed by the shadow: |s_f - r s_b| above
+    max(texture * r s_b, NOISE_GREY), with s_f, s_b the standard deviations of frame and
+    background over the window and r their mean ratio (a shadow keeps s_f = r s_b; smooth
+    paint over a grainy road loses it, a textured vehicle over a smooth road adds its own)."""
     fg = np.where(raw == 255, np.uint8(255), np.uint8(0))
     candidates = raw == SHADOW
     if not candidates.any():
         return fg
+    k = (window, window)
     f = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY).astype(np.float32)
     b = cv2.cvtColor(background, cv2.COLOR_BGR2GRAY).astype(np.float32)
-    w = candidates.astype(np.float32)
-    ratio = f / (b + 1.0) * w
-    k = (window, window)
-    n = np.maximum(cv2.blur(w, k), 1e-6)   # statistics over the window's shadow pixels only
-    mean = cv2.blur(ratio, k) / n
-    var = cv2.blur(ratio * ratio, k) / n - mean * mean
-    # The ring of blurred pixels around a vehicle's outline looks like textured shadow:
-    # pixels next to the foreground are not judged (the closing fills a vehicle's holes).
-    ring = cv2.dilate(fg, np.ones((3, 3), np.uint8)) > 0
-    vehicle = candidates & ~ring & (var > texture * texture)
-    fg[vehicle] = 255
+    mf, mb = cv2.blur(f, k), cv2.blur(b, k)
+    sf = np.sqrt(np.maximum(cv2.blur(f * f, k) - mf * mf, 0.0))
+    sb = np.sqrt(np.maximum(cv2.blur(b * b, k) - mb * mb, 0.0))
+    expected = (mf / (mb + 1.0)) * sb
+    differs = np.abs(sf - expected) > np.maximum(texture * expected, NOISE_GREY)
+    # Blurred edges -- the ring around a vehicle's outline, the rim of a shadow -- mix two
+    # brightness levels and look textured: only pixels with shadow-labelled neighbours all
+    # round are judged (the closing fills a vehicle's holes again).
+    inner = cv2.erode(candidates.astype(np.uint8), np.ones(k, np.uint8)) > 0
+    fg[inner & differs] = 255
     return fg

@@ -1,0 +1,183 @@
+"""The tracker's capabilities on scripted detections (no video), each checked against the
+behaviour without it: the box size filter on receding and occluded vehicles, the consistent
+finite-difference measurement (ANEES inside the chi-square band), camera motion, standing
+vehicles, confirmation by edge motion, the scene's scale field and scale-free parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from vtrack.estimation.models import ConstantAcceleration
+from vtrack.tracking.scale_field import ScaleField
+from vtrack.tracking.tracker import Tracker, TrackerConfig
+
+W, H, FPS = 640, 360, 25.0
+
+
+def _run(boxes_at, frames, cfg=None, width=W, height=H, motion_at=None):
+    tr = Tracker(cfg or TrackerConfig(), width, height, FPS)
+    out = []
+    for n in range(1, frames + 1):
+        t = (n - 1) / FPS
+        b = np.array(boxes_at(t), dtype=float).reshape(-1, 4)
+        m = motion_at(t) if motion_at else None
+        out.append(tr.step(n, t, b[:, :2] + b[:, 2:] / 2, b, m))
+    return tr, out
+
+
+def test_receding_vehicle_box_follows_its_size():
+    """A vehicle driving away shrinks from 120 to 40 px wide over 3 s: the box size is
+    estimated (within 8 %), not held at its largest (the old growth-only heuristic kept
+    boxes 1.5-3x too large)."""
+    def box(t):
+        w = 120 * np.exp(-np.log(3) * t / 3)
+        cx, cy = 320, 300 - 60 * t
+        return [(cx - w / 2, cy - w / 4, w, w / 2)] if t <= 3 else []
+    _, states = _run(box, 76)
+    for n in (40, 60, 75):
+        w_true = box((n - 1) / FPS)[0][2]
+        assert states[n - 1].boxes[0, 2] == pytest.approx(w_true, rel=0.08), n
+
+
+def test_occluded_vehicle_keeps_its_size():
+    """A 60 px car passes behind a 40 px pole: the visible part shrinks and grows back; its
+    box keeps the car's size instead of following the visible part down."""
+    def pieces(t):
+        x0, x1 = 50 + 100 * t, 110 + 100 * t
+        vis = [(a, b) for a, b in ((x0, min(x1, 300)), (max(x0, 340), x1)) if b - a >= 3]
+        return [(a, 170, b - a, 20) for a, b in vis]
+    _, states = _run(pieces, 110)
+    widths = [s.boxes[0, 2] for s in states[30:] if len(s.ids)]
+    assert min(widths) > 0.85 * 60
+    ids = set().union(*(s.ids.tolist() for s in states))
+    assert ids == {1}
+
+
+def _nees(mode, runs=30, n=150, q=1e4, sigma=2.0):
+    """ANEES of the tracker's 6-state filter on a simulated constant-acceleration target
+    (white-jerk q px^2/s^5, detection noise sigma px, 25 fps), as in issue 12."""
+    dt = 1 / FPS
+    model = ConstantAcceleration(q)
+    F, L = model.transition(dt), np.linalg.cholesky(model.Q(dt) + 1e-12 * np.eye(6))
+    w, h = 40.0, 20.0
+    cfg = TrackerConfig(measurement=mode, jerk=q / (w * h), detection_sigma=sigma / np.sqrt(w * h),
+                        confirm_motion=0.0, scale_field=False)
+    nees = []
+    for r in range(runs):
+        rng = np.random.default_rng(r)
+        x = np.array([100, 180, 120, 0, 0, 0.0])
+        tr = Tracker(cfg, 100000, 100000, FPS)
+        for k in range(n):
+            if k:
+                x = F @ x + L @ rng.standard_normal(6)
+            c = x[:2] + rng.normal(0, sigma, 2)
+            ft = tr.step(k + 1, k * dt, c[None], np.array([[c[0] - w / 2, c[1] - h / 2, w, h]]))
+            if k >= 20 and len(ft.ids):
+                e = ft.states[0] - x
+                nees.append(e @ np.linalg.solve(ft.covariances[0], e))
+    return np.mean(nees), len(nees)
+
+
+def test_finite_difference_measurement_is_consistent():
+    """The seed's measurement processed as what it is (the new detection, module
+    measurements.py) keeps the ANEES of the 6-state filter inside the 99 % chi-square band;
+    treated as white noise (R = D Sigma D') it is overconfident, as issue 12 measured (10.7)."""
+    anees, m = _nees("finite-difference")
+    lo, hi = chi2.ppf([0.005, 0.995], 6 * m) / m
+    # samples of one run are correlated in time: the band is that of the runs, 30 x 6 dof
+    lo_r, hi_r = chi2.ppf([0.005, 0.995], 6 * 30) / 30
+    assert lo_r <= anees <= hi_r, (anees, lo_r, hi_r)
+    white, _ = _nees("finite-difference-white")
+    assert white > hi_r and white > 1.4 * anees
+
+
+def test_camera_motion_moves_the_tracks():
+    """The camera pans 6 px per frame for a second: the detections move with it, the
+    vehicle does not change its speed. Told the motion, the tracker keeps the vehicle's
+    velocity (60 px/s); told nothing, it takes the pan for a manoeuvre (150 px/s) and is
+    still 30 px/s off half a second after the pan stopped."""
+    def pan(t):
+        return 6.0 * min(round(t * FPS), 25)
+    def boxes(t):
+        x = 100 + 60 * t + pan(t)
+        return [(x - 20, 170, 40, 20)]
+    def motion(t):
+        n = round(t * FPS)
+        dx = 6.0 if 1 <= n <= 25 else 0.0
+        return np.array([[1.0, 0.0, dx], [0.0, 1.0, 0.0]])
+    _, with_motion = _run(boxes, 60, motion_at=motion)
+    assert set().union(*(s.ids.tolist() for s in with_motion)) == {1}
+    err = [abs(s.states[0, 2] - 60) for s in with_motion[30:]]
+    assert max(err) < 20   # the velocity is the vehicle's, not the pan's
+    _, without = _run(boxes, 60)
+    assert max(abs(s.states[0, 2] - 60) for s in without[30:40]) > 30
+
+
+def test_standing_vehicle_keeps_its_id():
+    """A vehicle stops for 5 s at a light; the detector loses it while it stands (the
+    background model absorbs it); when it drives off, it is the same track."""
+    def boxes(t):
+        if t < 2:
+            x = 100 + 80 * t - 20 * t * t        # brakes to a stop at t = 2
+        elif t < 7:
+            return []                             # standing, not detected
+        else:
+            x = 180 + 60 * (t - 7)
+        return [(x - 20, 170, 40, 20)]
+    _, states = _run(boxes, 250)
+    ids = set().union(*(s.ids.tolist() for s in states))
+    assert ids == {1}
+    _, off = _run(boxes, 250, TrackerConfig(stand_speed=0.0))
+    assert len(set().union(*(s.ids.tolist() for s in off))) == 2
+
+
+def test_big_vehicle_entering_at_the_border_confirms_on_its_moving_edge():
+    """A 300 px bus enters from the left edge at 150 px/s: its box's right edge moves at
+    that speed while its centre moves at half of it; it is confirmed within 0.5 s."""
+    def boxes(t):
+        x1 = 150 * t + 10
+        return [(0, 150, min(x1, 300), 80)]
+    _, states = _run(boxes, 13)
+    assert len(states[-1].ids) == 1
+
+
+def test_scale_field_learns_perspective():
+    """Pairs of boxes of vehicles whose image size grows linearly toward the bottom of the
+    image (k = 0.2 + 2 y / H): the field predicts each vehicle's growth rate within 25 %."""
+    f = ScaleField(W, H)
+    rng = np.random.default_rng(0)
+    true_k = lambda y: 0.2 + 2 * y / H   # noqa: E731
+    for _ in range(300):
+        m = rng.uniform(20, 40)
+        x = rng.uniform(0, W)
+        y1 = rng.uniform(50, 300)
+        y2 = y1 + rng.uniform(10, 50)
+        x2 = x + rng.normal(0, 20)
+        s1, s2 = (m * true_k(y) * np.exp(rng.normal(0, 0.05)) for y in (y1, y2))
+        f.add(np.array([[x, y1]]), np.array([s1]), np.array([[x2, y2]]), np.array([s2]))
+    p = np.array([[320, 100], [320, 200], [320, 300]], float)
+    v = np.array([[0, 50], [0, 50], [0, 50]], float)
+    true = 50 * (2 / H) / true_k(p[:, 1])
+    assert np.allclose(f.log_rate(p, v), true, rtol=0.25)
+    flat = ScaleField(W, H)
+    assert np.all(flat.log_rate(p, v) == 0)
+
+
+def test_parameters_are_scale_free():
+    """The same scene at twice the resolution gives the same tracks, twice as large."""
+    def scene(scale):
+        def boxes(t):
+            out = []
+            for k, (x0, y, v) in enumerate(((30, 100, 90), (600, 250, -70))):
+                x = x0 + v * t
+                out.append((scale * (x - 25), scale * (y - 10), scale * 50, scale * 20))
+            return out
+        return boxes
+    _, small = _run(scene(1), 100)
+    _, large = _run(scene(2), 100, width=2 * W, height=2 * H)
+    rows_s = np.vstack([s.rows for s in small])
+    rows_l = np.vstack([s.rows for s in large])
+    assert len(rows_s) == len(rows_l) > 150
+    assert np.allclose(rows_l[:, 2:6], 2 * rows_s[:, 2:6], atol=0.5)
