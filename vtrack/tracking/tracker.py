@@ -153,7 +153,15 @@ class Tracker:
                            coasted=~hit[conf], states=tracks.x[conf].copy(),
                            covariances=tracks.P[conf].copy(), innovations=innov[conf],
                            rows=rows, detection_of=det_of[conf],
-                           size_rates=tracks.size[conf] * tracks.s[conf, 2:])
+                           size_rates=self._size_rates(conf))
+
+    def _size_rates(self, idx: np.ndarray) -> np.ndarray:
+        """d(w, h)/dt (px/s) of tracks idx: the growth the scene's perspective gives their
+        motion plus the size filter's own rates."""
+        tracks = self.tracks
+        growth = (self.field.log_rate(tracks.x[idx, :2], tracks.x[idx, 2:4])
+                  if self.cfg.scale_field else np.zeros(len(tracks.x[idx])))
+        return tracks.size[idx] * (growth[:, None] + tracks.s[idx, 2:])
 
     def _start(self, t: float, centers: np.ndarray, boxes: np.ndarray) -> None:
         """Append tentative tracks on these detections (assimilated by _update next)."""
