@@ -47,7 +47,7 @@ class TrackerConfig:
     scale_field: bool = field(default=True, metadata=_h(
         "learn how a vehicle's image size changes with its position (scale_field.py) and "
         "predict each box's growth from its motion; false: sizes change only by their rates"))
-    size_psd: float = field(default=0.1, metadata=_h(
+    size_psd: float = field(default=0.01, metadata=_h(
         "white-noise acceleration density of the log box size, 1/s^3 (box_size.py)"))
     size_rate_seconds: float = field(default=1.0, metadata=_h(
         "time constant of the size rates' return to zero without measurements, s"))
@@ -61,7 +61,7 @@ class TrackerConfig:
         "(0: at once; a track often starts on part of a vehicle coming into view)"))
     size_shrink_seconds: float = field(default=1.0, metadata=_h(
         "detections smaller than the size gate for this long restart the size from them, s"))
-    init_size_rate_sigma: float = field(default=0.3, metadata=_h(
+    init_size_rate_sigma: float = field(default=0.05, metadata=_h(
         "prior std of a new track's relative size rate d ln w/dt, 1/s"))
     confirm_seconds: float = field(default=0.3, metadata=_h(
         "confirmation window, s: a track is confirmed once detected in `confirm_fraction` "
