@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from collections import Counter
 
-import numpy as np
 from test_zones import _frame
 
 from vtrack.analytics.regions import CountLine, Zone

@@ -23,15 +23,19 @@ SHARED_VIDEOS = Path(__file__).resolve().parents[3] / "shared" / "videos"
 MARGIN = 0.05
 FRAMES = 200
 
-# scene, seed: (MOTA, IDF1) measured on this slice (200 frames, 640x360, default config)
+# scene, seed: (MOTA, IDF1) measured on this slice (200 frames, 640x360, default config),
+# on the commit that closed issue 12. The perspective scenes are hard for background
+# subtraction (far vehicles of a few pixels, parked cars, shadows, overlaps; README,
+# Results): these floors catch a regression, they are not targets.
 MEASURED = {
-    ("overhead", 0): (0.0, 0.0),
-    ("mast", 0): (0.0, 0.0),
-    ("side", 0): (0.0, 0.0),
-    ("junction", 0): (0.0, 0.0),
+    ("overhead", 0): (0.900, 0.868),
+    ("mast", 0): (-0.028, 0.227),
+    ("side", 0): (-0.590, 0.206),
+    ("junction", 0): (-0.132, 0.383),
 }
 
-# clip, y_fraction: (forward, backward) hand ranges (handcounts.json) and the tolerance
+# clip: tolerance around its hand range (handcounts.json); measured on the same commit:
+# mrc 11 forward (hand 11), vk 15 forward / 19 backward (hand 16-17 / 19-22)
 REAL = {
     "mrc_motorway_bridge.mp4": 1,
     "vk_arterial_8lane.mp4": 1,

@@ -117,9 +117,9 @@ def iterated_update(motion: MotionModel, meas: MeasurementModel, x_prior: np.nda
     update. The result's covariance and innovation are those of the last linearisation.
     Returns (x, P, innovation, iterations done).
     """
-    m = x_prior
+    m, P = x_prior, P_prior
     for i in range(1, max_iterations + 1):
-        A, y, Omega = linearise(m, P_prior if i == 1 else P)
+        A, y, Omega = linearise(m, P)
         nu = meas.residual(z, y) + A @ motion.residual(m, x_prior)
         x, P, info = kf_update(x_prior, P_prior, nu, A, R if Omega is None else R + Omega)
         d = motion.residual(x, m)

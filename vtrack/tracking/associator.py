@@ -62,7 +62,7 @@ class Associator:
                                            sigma[trk, None]))
         # A vehicle's detection overlaps its predicted box (the gate alone, in box scales,
         # would let a coasting track with a large box jump to a neighbour).
-        touch = _intersection(track_boxes[ti], boxes[di]) > 0
+        touch = intersection(track_boxes[ti], boxes[di]) > 0
         ti, di, cost = ti[touch], di[touch], cost[touch]
         mt, md = assign(ti, di, cost, len(tracks), len(centers))
         mt, md, consumed, duplicates = _resolve_shared(tracks, track_boxes, mt, md, boxes)
@@ -198,10 +198,10 @@ def _reacquire(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray, md: 
     return np.concatenate([mt, lost[rt]]), np.concatenate([md, free[rd]])
 
 
-def _intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Intersection areas of boxes a (K, 4) and b (K, 4), pairwise by row."""
-    w = np.minimum(a[:, 0] + a[:, 2], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0], b[:, 0])
-    h = np.minimum(a[:, 1] + a[:, 3], b[:, 1] + b[:, 3]) - np.maximum(a[:, 1], b[:, 1])
+def intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Intersection areas of boxes a and b (..., 4: x, y, w, h), broadcast by row."""
+    w = np.minimum(a[..., 0] + a[..., 2], b[..., 0] + b[..., 2]) - np.maximum(a[..., 0], b[..., 0])
+    h = np.minimum(a[..., 1] + a[..., 3], b[..., 1] + b[..., 3]) - np.maximum(a[..., 1], b[..., 1])
     return np.clip(w, 0, None) * np.clip(h, 0, None)
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.tracking.associator import Association, Associator, detection_sigma
+from vtrack.tracking.associator import Associator, detection_sigma, intersection
 from vtrack.tracking.box_size import BoxSizeFilter
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
@@ -30,13 +30,6 @@ from vtrack.tracking.scale_field import ScaleField
 from vtrack.tracking.table import TrackTable
 
 _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-
-def _overlap(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """Intersection area of `box` with each of `boxes` (x, y, w, h)."""
-    w = np.minimum(box[0] + box[2], boxes[:, 0] + boxes[:, 2]) - np.maximum(box[0], boxes[:, 0])
-    h = np.minimum(box[1] + box[3], boxes[:, 1] + boxes[:, 3]) - np.maximum(box[1], boxes[:, 1])
-    return np.clip(w, 0, None) * np.clip(h, 0, None)
-
 
 __all__ = ["ADAPTIVE_KINDS", "ROW_COLUMNS", "FrameTracks", "Tracker", "TrackerConfig"]
 
@@ -182,8 +175,8 @@ class Tracker:
         if len(idx) == 0:
             return
         all_boxes = tracks.boxes(self.width, self.height)
-        alone = np.array([np.count_nonzero(_overlap(all_boxes[i], all_boxes) > 0) == 1
-                          for i in idx], dtype=bool)
+        alone = np.count_nonzero(intersection(all_boxes[idx, None], all_boxes[None]) > 0,
+                                 axis=1) == 1
         idx, boxes = idx[alone], boxes[alone]
         p = boxes[:, :2] + boxes[:, 2:] / 2
         sc = np.sqrt(boxes[:, 2] * boxes[:, 3])
