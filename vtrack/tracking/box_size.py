@@ -27,7 +27,7 @@ outline noise, where it shows the whole vehicle:
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import ndtri
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import WienerVelocity
 from vtrack.tracking.table import TrackTable
@@ -41,7 +41,7 @@ class BoxSizeFilter:
         self.model = WienerVelocity(size_psd)
         self.sigma = size_sigma
         self.tau = rate_seconds
-        self.gate = float(chi2.ppf(gate_probability, 1))
+        self.gate = float(ndtri((1 + gate_probability) / 2)) ** 2   # chi-square, 1 dof
         self.reset_seconds = reset_seconds
 
     def _var(self, sizes: np.ndarray) -> np.ndarray:

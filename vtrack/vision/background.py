@@ -7,6 +7,9 @@ import cv2
 import numpy as np
 
 
+IMAGE_EVERY = 5  # frames between recomputations of the background image
+
+
 class Mog2Background:
     """MOG2 with a variance floor `var_min` (sigma >= 4 grey levels by default; OpenCV's floor
     of 4 lets H.264 texture refreshes light up foliage), learning fast during the warm-up and
@@ -20,6 +23,8 @@ class Mog2Background:
         self.warmup = warmup_frames
         self.frames = 0
         self.primed = False
+        self._image: np.ndarray | None = None
+        self._image_frame = 0
         self._mog = cv2.createBackgroundSubtractorMOG2(history, var_threshold, detect_shadows)
         self._mog.setShadowThreshold(shadow_ratio)
         self._mog.setVarMin(var_min)  # OpenCV keeps var_min <= var_init <= var_max
@@ -38,8 +43,11 @@ class Mog2Background:
         return -1.0 if self.frames <= self.warmup and not self.primed else 1.0 / self.history
 
     def image(self) -> np.ndarray:
-        """The model's background image (its most probable colour per pixel)."""
-        return self._mog.getBackgroundImage()
+        """The model's background image (its most probable colour per pixel), recomputed
+        every IMAGE_EVERY frames (it changes at the learning rate, ~1/history per frame)."""
+        if self._image is None or self.frames - self._image_frame >= IMAGE_EVERY:
+            self._image, self._image_frame = self._mog.getBackgroundImage(), self.frames
+        return self._image
 
     def initialise(self, background: np.ndarray) -> None:
         """Start the model from a background image: one mode per pixel at its colour, with

@@ -38,8 +38,15 @@ def textured_shadow(raw: np.ndarray, frame: np.ndarray, background: np.ndarray,
     if not candidates.any():
         return fg
     k = (window, window)
-    f = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY).astype(np.float32)
-    b = cv2.cvtColor(background, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    # Only the region around the shadow-labelled pixels is examined.
+    x, y, w, h = cv2.boundingRect(candidates.astype(np.uint8))
+    m = window
+    x0, y0 = max(x - m, 0), max(y - m, 0)
+    x1, y1 = min(x + w + m, raw.shape[1]), min(y + h + m, raw.shape[0])
+    sub = (slice(y0, y1), slice(x0, x1))
+    candidates = candidates[sub]
+    f = cv2.cvtColor(frame[sub], cv2.COLOR_BGR2GRAY).astype(np.float32)
+    b = cv2.cvtColor(background[sub], cv2.COLOR_BGR2GRAY).astype(np.float32)
     mf, mb = cv2.blur(f, k), cv2.blur(b, k)
     sf = np.sqrt(np.maximum(cv2.blur(f * f, k) - mf * mf, 0.0))
     sb = np.sqrt(np.maximum(cv2.blur(b * b, k) - mb * mb, 0.0))
@@ -49,5 +56,5 @@ def textured_shadow(raw: np.ndarray, frame: np.ndarray, background: np.ndarray,
     # brightness levels and look textured: only pixels with shadow-labelled neighbours all
     # round are judged (the closing fills a vehicle's holes again).
     inner = cv2.erode(candidates.astype(np.uint8), np.ones(k, np.uint8)) > 0
-    fg[inner & differs] = 255
+    fg[sub][inner & differs] = 255
     return fg

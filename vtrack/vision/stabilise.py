@@ -85,7 +85,7 @@ class Stabiliser:
     def set_reference(self, small: np.ndarray) -> None:
         """Make `small` (a frame at the detection resolution) the reference."""
         self._ref = self._grey(small)
-        pts = cv2.goodFeaturesToTrack(self._ref, 400, 0.01, 8, blockSize=7)
+        pts = cv2.goodFeaturesToTrack(self._ref, 200, 0.01, 10, blockSize=7)
         self._pts = pts if pts is not None else np.zeros((0, 1, 2), np.float32)
 
     def estimate(self, small: np.ndarray) -> np.ndarray | None:
@@ -98,7 +98,7 @@ class Stabiliser:
             return None
         grey = self._grey(small)
         nxt, status, _ = cv2.calcOpticalFlowPyrLK(self._ref, grey, self._pts, None,
-                                                  winSize=(21, 21), maxLevel=3)
+                                                  winSize=(15, 15), maxLevel=3)
         ok = status.ravel() == 1
         if ok.sum() < 12:
             return None
