@@ -248,9 +248,10 @@ def test_interrupted_batch_exits_130_and_resumes(tmp_path, clip_factory, how):
     out = tmp_path / "out"
     proc = _start_batch(tmp_path / "in", out, workers=2)
     deadline = time.time() + 60
-    while time.time() < deadline and len([p for p in out.glob("v*") if p.is_dir()]) < 2:
+    # both workers are tracking: a run writes summary.json after its first frame (before
+    # that it reads the background samples, which takes a machine-dependent time)
+    while time.time() < deadline and len(list(out.glob("v*/summary.json"))) < 2:
         time.sleep(0.05)
-    time.sleep(0.6)                       # both workers are inside track_video now
     workers = _children(proc.pid)
     if how == "ctrl-c":
         os.killpg(proc.pid, signal.SIGINT)    # a terminal's Ctrl-C reaches the whole group

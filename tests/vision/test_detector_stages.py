@@ -104,3 +104,42 @@ def test_shadow_dropped_dark_vehicle_kept():
     for n in range(32):
         d0 = plain.detect(frame(n))
     assert not np.any(np.all(np.abs(d0.centers - (215, 165)) < 6, axis=1))   # car lost
+
+
+def test_outlined_car_of_the_road_colour_kept(monkeypatch):
+    """A car painted the road's colour shows only its dark outline, which MOG2 labels shadow
+    (a darker copy of the road) and which is too thin for the per-window texture test: the
+    long thin dark lines are kept, the car found; a cast shadow (wide) and a far vehicle's
+    short shadow strip are still dropped. Without the line test the car is lost."""
+    from vtrack.vision import shadows
+
+    rng = np.random.default_rng(7)
+    grey = cv2.resize(rng.normal(110, 6, (31, 41)).astype(np.float32), (320, 240),
+                      interpolation=cv2.INTER_CUBIC)
+    road = np.repeat(grey[:, :, None], 3, axis=2)
+
+    def frame(n):
+        img = road.copy()
+        if n >= 30:
+            img[60:100, 40:140] *= 0.6                 # a cast shadow, 100 x 40
+            img[30:33, 250:258] *= 0.6                 # a far vehicle's shadow strip, 8 x 3
+            x0, y0, x1, y1 = 180, 150, 240, 174        # the car, 60 x 24: only its outline
+            img[y0:y1, x0:x1] *= 0.6
+            img[y0 + 2:y1 - 2, x0 + 2:x1 - 2] = road[y0 + 2:y1 - 2, x0 + 2:x1 - 2]
+            img[y0 + 2:y1 - 2, x0 + 14:x0 + 16] *= 0.6     # the windscreen's edge
+        img += rng.normal(0, 2.0, img.shape).astype(np.float32)
+        return np.clip(img, 0, 255).astype(np.uint8)
+
+    def centres():
+        det = MotionDetector(DetectorConfig(warmup_frames=10, min_motion=0.0), 320, 240)
+        for n in range(32):
+            d = det.detect(frame(n))
+        return d.centers
+
+    found = centres()
+    assert np.any(np.all(np.abs(found - (210, 162)) < 6, axis=1)), found      # the car
+    assert not np.any(np.all(np.abs(found - (90, 80)) < 20, axis=1)), found   # no shadow
+    assert not np.any(np.all(np.abs(found - (254, 31)) < 8, axis=1)), found   # no strip
+    monkeypatch.setattr(shadows, "LINE_GREY", np.inf)
+    lost = centres()
+    assert not np.any(np.all(np.abs(lost - (210, 162)) < 6, axis=1)), lost
