@@ -39,25 +39,20 @@ def synth_video(tmp_path_factory):
 def overhead_truth():
     """(seed, folder) -> writes folder/calibration.toml and folder/world.csv for the
     synth_video fixture's scene of that seed: the overhead view is a pure scale (pixels /
-    px_per_m); world.csv has each vehicle's speed, length and class per frame."""
-    import numpy as np
-
-    from vtrack.sim.traffic import simulate_traffic
+    px_per_m, Y from the road's top kerb as in world.csv); world.csv has each vehicle's
+    speed, length and class per frame (`vtrack synth` writes the same file)."""
+    from vtrack.sim.groundtruth import format_world
+    from vtrack.sim.traffic import simulate_traffic, world_rows
 
     def write(seed: int, folder: Path, frames: int = 250, vehicles: int = 12) -> Path:
         tr = simulate_traffic(frames, vehicles, 640, 360, 25.0, seed)
-        ppm = tr.layout.px_per_m
+        ppm, top = tr.layout.px_per_m, tr.layout.road_top
         pts = [(40, 60), (600, 70), (590, 330), (50, 320)]
         folder.mkdir(parents=True, exist_ok=True)
         (folder / "calibration.toml").write_text("frame_size = [640, 360]\n" + "".join(
-            f"[[points]]\nimage = [{u}, {v}]\nworld = [{u / ppm:.6f}, {v / ppm:.6f}]\n"
+            f"[[points]]\nimage = [{u}, {v}]\nworld = [{u / ppm:.6f}, {(v - top) / ppm:.6f}]\n"
             for u, v in pts))
-        rows = ["frame,id,X_m,Y_m,speed_kmh,length_m,class"]
-        for k, veh in enumerate(tr.vehicles):
-            for n in np.flatnonzero(np.isfinite(tr.s[k])):
-                rows.append(f"{n + 1},{veh.id},{tr.s[k, n] / ppm:.3f},0,"
-                            f"{3.6 * tr.v[k, n] / ppm:.3f},{veh.length / ppm:.3f},{veh.kind}")
-        (folder / "world.csv").write_text("\n".join(rows) + "\n")
+        (folder / "world.csv").write_text(format_world(world_rows(tr)))
         return folder / "calibration.toml"
 
     return write

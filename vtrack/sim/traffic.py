@@ -305,6 +305,22 @@ class _Road:
 
 # ----------------------------------------------------------------------------- ground truth
 
+def world_rows(traj: Trajectories) -> list[tuple[int, int, float, float, float, float, str]]:
+    """world.csv rows (frame, id, X_m, Y_m, speed_kmh, length_m, class): the overhead view is
+    a pure scale, so X is the vehicle's front column and Y its lane's centre row below the
+    road's top kerb, in metres (`px_per_m`)."""
+    ppm = traj.layout.px_per_m
+    rows = []
+    for k, veh in enumerate(traj.vehicles):
+        lane = traj.layout.lanes[veh.lane]
+        y = (lane.y - traj.layout.road_top) / ppm
+        for n in np.flatnonzero(np.isfinite(traj.s[k])):
+            front = traj.s[k, n] if lane.direction > 0 else traj.layout.width - traj.s[k, n]
+            rows.append((int(n) + 1, veh.id, front / ppm, y, 3.6 * traj.v[k, n] / ppm,
+                         veh.length / ppm, veh.kind))
+    return rows
+
+
 def ground_truth(traj: Trajectories) -> np.ndarray:
     """MOT ground-truth rows (M, 11), sorted by frame then id.
 
