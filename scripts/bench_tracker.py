@@ -31,6 +31,9 @@ from vtrack.tracking.tracker import Tracker, TrackerConfig
 
 FPS = 25.0
 CFG = TrackerConfig()
+BOX = 30.0   # px: every target's box is 30 x 30; the config's scale-free values in pixels
+JERK = CFG.jerk * BOX**2                      # px^2/s^5
+SIGMA = max(CFG.detection_sigma * BOX, 0.5)   # px
 
 
 def _steady(times: list[float]) -> float:
@@ -56,10 +59,10 @@ def scenario(n: int, frames: int, seed: int = 0) -> tuple[np.ndarray, int, int]:
 def bench_vtrack(pos: np.ndarray, w: int, h: int) -> float:
     tr = Tracker(TrackerConfig(), w, h)
     boxes = np.zeros((pos.shape[1], 4))
-    boxes[:, 2:] = 30.0
+    boxes[:, 2:] = BOX
     times = []
     for k, p in enumerate(pos):
-        boxes[:, :2] = p - 15.0
+        boxes[:, :2] = p - BOX / 2
         t0 = time.perf_counter()
         tr.step(k + 1, k / FPS, p, boxes)
         times.append(time.perf_counter() - t0)
@@ -73,8 +76,8 @@ def _new_filter(p: np.ndarray):
     kf = KalmanFilter(dim_x=6, dim_z=6)
     kf.H = np.eye(6)
     kf.x = np.array([p[0], p[1], 0, 0, 0, 0.0])
-    kf.P = np.diag([CFG.detection_sigma**2] * 2 + [CFG.init_speed_sigma**2] * 2
-                   + [CFG.init_accel_sigma**2] * 2)
+    kf.P = np.diag([SIGMA**2] * 2 + [(CFG.init_speed_sigma * BOX)**2] * 2
+                   + [(CFG.init_accel_sigma * BOX)**2] * 2)
     return kf
 
 
@@ -90,7 +93,7 @@ class _Track:
         """Seed 001's measurement from this track's own detections, then a filterpy update."""
         self.points = [p, *self.points[:2]]
         self.times = [t, *self.times[:2]]
-        var = CFG.detection_sigma**2
+        var = SIGMA**2
         if len(self.points) < 3:  # a young track measures its position only
             H = np.eye(6)[:2]
             self.kf.update(p, R=np.eye(2) * var, H=H)
@@ -102,9 +105,9 @@ class _Track:
 
 
 def bench_per_track_tracker(pos: np.ndarray) -> float:
-    model = ConstantAcceleration(CFG.jerk_psd)
+    model = ConstantAcceleration(JERK)
     gate = -2.0 * math.log1p(-CFG.gate_probability)
-    var = CFG.detection_sigma**2
+    var = SIGMA**2
     tracks = [_Track(p, 0.0) for p in pos[0]]
     times = []
     for k in range(1, len(pos)):
@@ -130,7 +133,7 @@ def bench_per_track_tracker(pos: np.ndarray) -> float:
 
 
 def bench_filters_only(pos: np.ndarray) -> float:
-    model = ConstantAcceleration(CFG.jerk_psd)
+    model = ConstantAcceleration(JERK)
     dt = 1.0 / FPS
     F, Q = model.transition(dt), model.Q(dt)
     # The finite-difference measurements of every frame are formed outside the timed loop,
@@ -142,7 +145,7 @@ def bench_filters_only(pos: np.ndarray) -> float:
         idx = [k, max(k - 1, 0), max(k - 2, 0)]
         z, R, _ = finite_difference_measurement(
             np.swapaxes(pos[idx], 0, 1), np.repeat(t[idx][None] + [0, 0, -1e-3 * (k < 2)], n, 0),
-            np.full(n, 3), CFG.detection_sigma)
+            np.full(n, 3), SIGMA)
         zs.append(z)
         Rs.append(R)
     filters = [_new_filter(p) for p in pos[0]]

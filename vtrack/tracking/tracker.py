@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from vtrack.tracking.associator import Associator, detection_sigma, intersection
 from vtrack.tracking.box_size import BoxSizeFilter
@@ -175,8 +176,16 @@ class Tracker:
         if len(idx) == 0:
             return
         all_boxes = tracks.boxes(self.width, self.height)
-        alone = np.count_nonzero(intersection(all_boxes[idx, None], all_boxes[None]) > 0,
-                                 axis=1) == 1
+        centre = all_boxes[:, :2] + all_boxes[:, 2:] / 2
+        # Boxes that overlap have centres within the largest diagonal (k-d tree pairs).
+        near = cKDTree(centre).query_ball_point(
+            centre[idx], float(np.hypot(all_boxes[:, 2], all_boxes[:, 3]).max()))
+        qi = np.repeat(np.arange(len(idx)), [len(n) for n in near])
+        pj = np.fromiter((j for n in near for j in n), dtype=int, count=len(qi))
+        other = pj != idx[qi]
+        qi, pj = qi[other], pj[other]
+        touching = qi[intersection(all_boxes[idx[qi]], all_boxes[pj]) > 0]
+        alone = np.bincount(touching, minlength=len(idx)) == 0
         idx, boxes = idx[alone], boxes[alone]
         p = boxes[:, :2] + boxes[:, 2:] / 2
         sc = np.sqrt(boxes[:, 2] * boxes[:, 3])
