@@ -37,7 +37,8 @@ def textured_shadow(raw: np.ndarray, frame: np.ndarray, background: np.ndarray,
     texture is not the background's dimmed by the shadow: |s_f - r s_b| above
     max(texture * r s_b, NOISE_GREY), with s_f, s_b the standard deviations of frame and
     background over the window and r their mean ratio (a shadow keeps s_f = r s_b; smooth
-    paint over a grainy road loses it, a textured vehicle over a smooth road adds its own)."""
+    paint over a grainy road loses it, a textured vehicle over a smooth road adds its own),
+    and those on long thin dark lines that the background lacks (a vehicle's outline)."""
     fg = np.where(raw == 255, np.uint8(255), np.uint8(0))
     candidates = raw == SHADOW
     if not candidates.any():
