@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from vtrack.boxes import iou as box_iou
 from vtrack.errors import InputError
 from vtrack.fileio import open_input
 
@@ -113,15 +114,6 @@ def ignore_mask(gt: np.ndarray) -> np.ndarray:
     if gt.shape[1] >= 11:
         mask |= gt[:, 10] < MIN_VISIBILITY
     return mask
-
-
-def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU matrix between boxes a (n, 4) and b (m, 4), both as (left, top, width, height)."""
-    a_lo, a_hi = a[:, None, :2], a[:, None, :2] + a[:, None, 2:4]
-    b_lo, b_hi = b[None, :, :2], b[None, :, :2] + b[None, :, 2:4]
-    inter = np.clip(np.minimum(a_hi, b_hi) - np.maximum(a_lo, b_lo), 0, None).prod(axis=2)
-    union = a[:, None, 2:4].prod(axis=2) + b[None, :, 2:4].prod(axis=2) - inter
-    return inter / union
 
 
 def drop_ignored(gt: np.ndarray, tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

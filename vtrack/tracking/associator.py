@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vtrack.boxes import intersection, overlap_of_smaller
 from vtrack.tracking.association import assign, gated_pairs, nearest_pairs
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.measurements import nested_centre
@@ -196,24 +197,6 @@ def _reacquire(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray, md: 
     dist = np.linalg.norm(centers[free[pi]] - tracks.x[lost[bi], :2], axis=1)
     rt, rd = assign(bi, pi, dist, len(lost), len(free))
     return np.concatenate([mt, lost[rt]]), np.concatenate([md, free[rd]])
-
-
-def intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Intersection areas of boxes a and b (..., 4: x, y, w, h), broadcast by row."""
-    w = np.minimum(a[..., 0] + a[..., 2], b[..., 0] + b[..., 2]) - np.maximum(a[..., 0], b[..., 0])
-    h = np.minimum(a[..., 1] + a[..., 3], b[..., 1] + b[..., 3]) - np.maximum(a[..., 1], b[..., 1])
-    return np.clip(w, 0, None) * np.clip(h, 0, None)
-
-
-def overlap_of_smaller(box: np.ndarray, others: np.ndarray) -> np.ndarray:
-    """Intersection area of `box` with each of `others` over the smaller of the two areas."""
-    x0 = np.maximum(box[0], others[:, 0])
-    y0 = np.maximum(box[1], others[:, 1])
-    x1 = np.minimum(box[0] + box[2], others[:, 0] + others[:, 2])
-    y1 = np.minimum(box[1] + box[3], others[:, 1] + others[:, 3])
-    inter = np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None)
-    smaller = np.minimum(box[2] * box[3], others[:, 2] * others[:, 3])
-    return inter / np.maximum(smaller, 1e-9)
 
 
 def points_in_boxes(points: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from vtrack.tracking.associator import Associator, detection_sigma, intersection
+from vtrack.boxes import intersection
+from vtrack.tracking.associator import Associator, detection_sigma
 from vtrack.tracking.box_size import BoxSizeFilter
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank

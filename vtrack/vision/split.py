@@ -17,18 +17,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from vtrack.boxes import intersection
+
 REACH = 1.5        # pixels beyond 1.5 half-sizes of every predicted box belong to none
 MIN_COVER = 0.5    # share of a predicted box that must lie on the blob's bounding box
 MAX_OVERLAP = 0.5  # two predicted boxes overlapping more than this are one vehicle
-
-
-def _inter(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Intersection areas (len(a), len(b)) of boxes (x, y, w, h)."""
-    w = (np.minimum(a[:, None, 0] + a[:, None, 2], b[None, :, 0] + b[None, :, 2])
-         - np.maximum(a[:, None, 0], b[None, :, 0]))
-    h = (np.minimum(a[:, None, 1] + a[:, None, 3], b[None, :, 1] + b[None, :, 3])
-         - np.maximum(a[:, None, 1], b[None, :, 1]))
-    return np.clip(w, 0, None) * np.clip(h, 0, None)
 
 
 def holders(blob: np.ndarray, priors: np.ndarray) -> np.ndarray:
@@ -39,11 +32,11 @@ def holders(blob: np.ndarray, priors: np.ndarray) -> np.ndarray:
         return np.zeros(0, dtype=int)
     c = priors[:, :2] + priors[:, 2:] / 2
     inside = np.all((c >= blob[:2]) & (c <= blob[:2] + blob[2:]), axis=1)
-    cover = _inter(priors, blob[None])[:, 0] / np.maximum(priors[:, 2] * priors[:, 3], 1e-9)
+    cover = intersection(priors, blob[None]) / np.maximum(priors[:, 2] * priors[:, 3], 1e-9)
     idx = np.flatnonzero(inside & (cover >= MIN_COVER))
     keep: list[int] = []
     for i in idx:
-        ov = _inter(priors[[i]], priors[keep])[0] if keep else np.zeros(0)
+        ov = intersection(priors[i], priors[keep]) if keep else np.zeros(0)
         smaller = np.minimum(priors[i, 2] * priors[i, 3], priors[keep, 2] * priors[keep, 3])
         if not np.any(ov > MAX_OVERLAP * smaller):
             keep.append(int(i))
