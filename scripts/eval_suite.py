@@ -6,8 +6,10 @@ Runs, with the DEFAULT configuration (or --config), every synthetic scene preset
 with its counting line, through `vtrack track`; then runs two peers, SORT and ByteTrack from
 the `trackers` package (Roboflow), on exactly the MOG2 detections vtrack's detector produced
 for that clip (`vtrack track --save-detections`), counted with the same line rule. Prints one
-table: per synthetic clip MOTA, IDF1, HOTA, ID switches, FP, FN per tracker; per real clip
-and line the counts beside the hand range; the mean and the worst per column.
+table: per synthetic clip MOTA, IDF1, HOTA, ID switches, FP, FN per tracker and the recall of
+the raw detections (the detector's ceiling: a loss above it is the tracker's, below it the
+detector's); per real clip and line the counts beside the hand range; the mean and the worst
+per column.
 
     .venv/bin/python scripts/eval_suite.py                 # the whole suite, 2 workers
     .venv/bin/python scripts/eval_suite.py --json suite.json
@@ -74,6 +76,7 @@ class Result:
     scores: dict[str, dict] = field(default_factory=dict)   # tracker -> metrics
     counts: dict[str, list] = field(default_factory=dict)   # tracker -> [[fwd, bwd], ...]
     hand: list = field(default_factory=list)                # [[y, [lo, hi], [lo, hi]], ...]
+    detector: dict = field(default_factory=dict)            # recall, precision (synthetic)
     error: str = ""
 
 
@@ -143,14 +146,19 @@ def track(video: Path, out: Path, lines: list[list[float]], config: str | None) 
     return json.loads((out / "summary.json").read_text())
 
 
+def read_detections(path: Path) -> np.ndarray:
+    """The rows (D, 10) of a detections.csv (`vtrack track --save-detections`)."""
+    return (np.loadtxt(path, delimiter=",", ndmin=2) if path.stat().st_size
+            else np.zeros((0, 10)))
+
+
 def run_peer(name: str, detections: Path, fps: float, frames: int, out: Path) -> Path:
     """Track vtrack's detections with a peer of the `trackers` package; writes MOT rows."""
     import supervision as sv
     from trackers import ByteTrackTracker, SORTTracker
 
     tracker = (SORTTracker if name == "sort" else ByteTrackTracker)(frame_rate=fps)
-    dets = np.loadtxt(detections, delimiter=",", ndmin=2) if detections.stat().st_size else \
-        np.zeros((0, 10))
+    dets = read_detections(detections)
     by_frame = {int(f): dets[dets[:, 0] == f] for f in np.unique(dets[:, 0])}
     rows = []
     for n in range(1, frames + 1):
@@ -184,7 +192,7 @@ def count(tracks: Path, lines: list[list[float]], fps: float) -> list[list[int]]
 
 def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | None,
              peers: bool) -> Result:
-    from vtrack.evaluation.mot import evaluate
+    from vtrack.evaluation.mot import detection_scores, evaluate, read_mot
 
     t0 = time.perf_counter()
     synthetic = isinstance(clip, SynthClip)
@@ -210,6 +218,9 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
             for name in PEERS:
                 outputs[name] = run_peer(name, out / "detections.csv", summary["fps_video"],
                                          summary["frames"], out)
+        if synthetic:
+            res.detector = detection_scores(read_mot(src / "gt.csv"),
+                                            read_detections(out / "detections.csv"))
         for name, path in outputs.items():
             if synthetic:
                 s = evaluate(src / "gt.csv", path)
@@ -253,6 +264,10 @@ def summarise(results: list[Result], trackers: list[str]) -> dict:
             s["count_abs_error_sum"] = int(e.sum())
             s["count_worst_relative"] = float(max(abs(a) / max(hi, 1) for a, hi in errs))
         out[t] = s
+    recall = [r.detector["recall"] for r in synth if r.detector]
+    if recall:
+        out["detector"] = {"recall_mean": float(np.mean(recall)),
+                           "recall_worst": float(min(recall))}
     return out
 
 
@@ -260,7 +275,7 @@ def print_table(results: list[Result], trackers: list[str], summary: dict) -> No
     synth = [r for r in results if r.kind == "synthetic"]
     if synth:
         print(f"{'synthetic clip':<22}{'tracker':<11}{'MOTA':>7}{'IDF1':>7}{'HOTA':>7}"
-              f"{'IDsw':>6}{'FP':>6}{'FN':>6}")
+              f"{'IDsw':>6}{'FP':>6}{'FN':>6}{'det.recall':>12}")
         for r in synth:
             if r.error:
                 print(f"{r.clip:<22}error: {r.error}")
@@ -268,17 +283,24 @@ def print_table(results: list[Result], trackers: list[str], summary: dict) -> No
             for t in trackers:
                 s = r.scores.get(t)
                 if s:
-                    print(f"{r.clip if t == trackers[0] else '':<22}{t:<11}{s['mota']:7.3f}"
+                    first = t == trackers[0]
+                    ceiling = f"{r.detector['recall']:12.3f}" if first and r.detector else ""
+                    print(f"{r.clip if first else '':<22}{t:<11}{s['mota']:7.3f}"
                           f"{s['idf1']:7.3f}{s['hota']:7.3f}{s['id_switches']:6d}"
-                          f"{s['false_positives']:6d}{s['misses']:6d}")
+                          f"{s['false_positives']:6d}{s['misses']:6d}{ceiling}")
         for agg in ("mean", "worst"):
             for t in trackers:
                 s = summary.get(t, {})
                 if "mota_mean" not in s:
                     continue
                 v = [s[f"{m}_{agg}"] for m in METRICS]
-                print(f"{agg if t == trackers[0] else '':<22}{t:<11}{v[0]:7.3f}{v[1]:7.3f}"
-                      f"{v[2]:7.3f}{v[3]:6.0f}{v[4]:6.0f}{v[5]:6.0f}")
+                det = summary.get("detector", {})
+                first = t == trackers[0]
+                ceiling = f"{det[f'recall_{agg}']:12.3f}" if first and det else ""
+                print(f"{agg if first else '':<22}{t:<11}{v[0]:7.3f}{v[1]:7.3f}"
+                      f"{v[2]:7.3f}{v[3]:6.0f}{v[4]:6.0f}{v[5]:6.0f}{ceiling}")
+        print("det.recall: the share of the ground truth the raw detections match (IoU >= "
+              "0.5, one to one),\nthe ceiling of a tracker's MOTA on them without coasting")
         print()
     real = [r for r in results if r.kind == "real"]
     if real:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from vtrack.errors import InputError
-from vtrack.evaluation.mot import evaluate, evaluate_arrays, read_mot
+from vtrack.evaluation.mot import detection_scores, evaluate, evaluate_arrays, read_mot
 
 
 def row(frame: int, ident: int, lane: int, vis: float | None = None) -> list[float]:
@@ -48,6 +48,18 @@ def test_id_switch():
     assert res["idf1"] == pytest.approx(2 * 10 / (20 + 20))
     # every detection is right (DetA 1); each half has A = 10 / (10 + 10 + 0) = 0.5
     assert res["hota"] == pytest.approx(np.sqrt(0.5))
+
+
+def test_detection_scores_count_each_detection_once():
+    """The detector's ceiling: object 1 detected in all 10 frames, object 2 in 3, one box on
+    nothing, ids all -1 (as in detections.csv) -> recall 13/20, precision 13/14."""
+    dets = np.array([r for r in GT if r[1] == 1] + [r for r in GT if r[1] == 2][:3]
+                    + [row(1, 5, 3)])
+    dets[:, 1] = -1
+    res = detection_scores(GT, dets)
+    assert res["recall"] == pytest.approx(13 / 20)
+    assert res["precision"] == pytest.approx(13 / 14)
+    assert detection_scores(GT, np.zeros((0, 10)))["recall"] == 0.0
 
 
 def test_false_positives():
