@@ -33,6 +33,8 @@ ABLATIONS = {
     "no-standing": ("standing vehicles held in place", "[tracker]\nstand_speed = 0.0\n"),
     "no-scale-field": ("the scene's scale field (growth predicted from motion)",
                        "[tracker]\nscale_field = false\n"),
+    "no-own-size": ("the vehicle's own size restarting a merged or wrong box at once",
+                    "[tracker]\nown_size = false\n"),
     "no-size-gate": ("size updated by every detection (no partial-view / merge gating)",
                      "[tracker]\nsize_gate_probability = 0.999999999\n"
                      "size_shrink_seconds = 0.001\n"),

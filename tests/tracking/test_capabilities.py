@@ -1,5 +1,6 @@
 """The tracker's capabilities on scripted detections (no video), each checked against the
-behaviour without it: the box size filter on receding and occluded vehicles, the consistent
+behaviour without it: the box size filter on receding and occluded vehicles, a vehicle's own
+size after a merged blob, the centre of a box cut by the image border, the consistent
 finite-difference measurement (ANEES inside the chi-square band), camera motion, standing
 vehicles, confirmation by edge motion, the scene's scale field and scale-free parameters."""
 
@@ -10,6 +11,7 @@ import pytest
 from scipy.stats import chi2
 
 from vtrack.estimation.models import ConstantAcceleration
+from vtrack.tracking.measurements import border_cut, box_centre
 from vtrack.tracking.scale_field import ScaleField
 from vtrack.tracking.tracker import Tracker, TrackerConfig
 
@@ -53,6 +55,44 @@ def test_occluded_vehicle_keeps_its_size():
     assert min(widths) > 0.85 * 60
     ids = set().union(*(s.ids.tolist() for s in states))
     assert ids == {1}
+
+
+@pytest.mark.parametrize("merged", [range(1, 4), range(21, 24)], ids=["born", "mid-track"])
+def test_merged_blob_gives_the_box_back(merged):
+    """A 60 x 30 px car's blob is joined with a neighbour's (120 px wide) for three frames,
+    at its birth or in mid-track. The size gate holds a larger track box against the car's
+    own detections for `size_shrink_seconds` (25 frames here); the car's own size (the median
+    of its detections, `own_size`) gives it back within a dozen frames of the merge ending."""
+    def box(t):
+        n = round(t * FPS) + 1
+        return [(100 + 100 * t, 170, 120 if n in merged else 60, 30)]
+    _, states = _run(box, merged.stop + 12)
+    assert states[-1].boxes[0, 2] == pytest.approx(60, rel=0.1)
+    # Not the shrink wait's doing: with a 10 s wait the box comes back just the same ...
+    slow = TrackerConfig(size_shrink_seconds=10.0)
+    assert _run(box, merged.stop + 12, slow)[1][-1].boxes[0, 2] == pytest.approx(60, rel=0.1)
+    # ... and without the own size the gate holds the merged box.
+    off = TrackerConfig(own_size=False)
+    assert _run(box, merged.stop + 12, off)[1][-1].boxes[0, 2] > 100
+
+
+def test_box_cut_by_the_border_measures_the_centre_from_its_inner_edge():
+    """A 180 x 120 px vehicle half out of the left border: its detection (0..90 in x) has one
+    real edge, x = 90, so the centre is 90 - 180/2 = 0, even where the track predicted it
+    elsewhere (at x = 60, a turn while leaving); the nested-box rule alone would have kept
+    the prediction (60 lies within the nested interval [0, 90]). An uncut partial view keeps
+    that rule (an occluder may hide either end)."""
+    pred, pos_var = np.array([[60.0, 200.0]]), np.array([[4.0, 4.0]])
+    size, size_var = np.array([[180.0, 120.0]]), np.array([[9.0, 9.0]])
+    box = np.array([[0.0, 140.0, 90.0, 120.0]])
+    whole, sigma = np.array([[False, True]]), np.array([[1.0, 1.0]])
+    cut = border_cut(box, W, H)
+    z, _ = box_centre(pred, pos_var, size, size_var, box, whole, sigma, cut)
+    assert z[0, 0] == pytest.approx(0.0) and z[0, 1] == pytest.approx(200.0)
+    inside = box + [[100.0, 0.0, 0.0, 0.0]]   # the same piece away from the border
+    z, _ = box_centre(pred + [[100.0, 0.0]], pos_var, size, size_var, inside, whole, sigma,
+                      border_cut(inside, W, H))
+    assert z[0, 0] == pytest.approx(160.0)    # the prediction, inside [100, 190]
 
 
 def _nees(mode, runs=30, n=150, q=1e4, sigma=2.0):

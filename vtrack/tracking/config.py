@@ -47,6 +47,11 @@ class TrackerConfig:
     scale_field: bool = field(default=True, metadata=_h(
         "learn how a vehicle's image size changes with its position (scale_field.py) and "
         "predict each box's growth from its motion; false: sizes change only by their rates"))
+    own_size: bool = field(default=True, metadata=_h(
+        "a detection the size of the vehicle's own (the median of its last detections, "
+        "carried along the scale field) restarts its box at once, where the size gate would "
+        "hold a merged or wrong size for `size_shrink_seconds` (box_size.py); false: only "
+        "the gate's waits do"))
     size_psd: float = field(default=0.01, metadata=_h(
         "white-noise acceleration density of the log box size, 1/s^3 (box_size.py)"))
     size_rate_seconds: float = field(default=1.0, metadata=_h(

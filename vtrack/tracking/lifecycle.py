@@ -14,7 +14,7 @@ import numpy as np
 
 from vtrack.tracking.associator import points_in_boxes
 from vtrack.tracking.config import TrackerConfig
-from vtrack.tracking.table import TrackTable
+from vtrack.tracking.table import OWN, TrackTable
 
 
 class Initiator:
@@ -45,6 +45,7 @@ class Initiator:
         table.x, table.P, table.s, table.Ps = x0, P0, s0, Ps0
         table.mismatch_t, table.mismatch_sign = np.full((k, 2), np.nan), np.zeros((k, 2))
         table.ref_p, table.ref_s = np.zeros((k, 2)), np.full(k, np.nan)
+        table.own = np.full((k, OWN, 2), np.nan)
         table.origin = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
         table.last_box = table.origin.copy()
         table.hist_p = np.zeros((k, 3, 2))

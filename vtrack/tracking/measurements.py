@@ -134,7 +134,8 @@ def _rows(count: np.ndarray, position_only: bool) -> np.ndarray:
 
 def box_centre(pred: np.ndarray, pos_var: np.ndarray, size: np.ndarray,
                size_var: np.ndarray, boxes: np.ndarray, whole: np.ndarray,
-               sigma: np.ndarray, k: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
+               sigma: np.ndarray, cut: np.ndarray, k: float = 3.0
+               ) -> tuple[np.ndarray, np.ndarray]:
     """A detected box as a measurement (z, var) of a track's centre (K, 2 each), per axis:
 
     - a side that shows the whole vehicle (`whole`, box_size.py): the box's centre, variance
@@ -142,14 +143,20 @@ def box_centre(pred: np.ndarray, pos_var: np.ndarray, size: np.ndarray,
     - else, one edge where the track expects it (within k standard deviations: the centre's
       variance pos_var, the size's size_var / 4 px^2 and sigma^2) while the other lies
       inside the track's box: that side is hidden (an occluder, the image border), and the
-      centre is the seen edge -/+ s/2 (variance sigma^2 + size_var / 4);
+      centre is the seen edge -/+ s/2 (variance sigma^2 + size_var / 4); so is a box
+      smaller than the track's cut by the image border on one side (`cut`, (K, 2, 2) as
+      border_cut): its inner edge is the vehicle's, wherever the track expected it (a
+      vehicle leaving the picture is followed out of it);
     - else the boxes are only nested (nested_centre).
     """
     lo_box, hi_box = boxes[:, :2], boxes[:, :2] + boxes[:, 2:]
     lo_p, hi_p = pred - size / 2, pred + size / 2
     tol = k * np.sqrt(pos_var + size_var / 4 + sigma**2)
-    seen_lo = (np.abs(lo_box - lo_p) <= tol) & (hi_box < hi_p - tol)
-    seen_hi = (np.abs(hi_box - hi_p) <= tol) & (lo_box > lo_p + tol)
+    smaller = boxes[:, 2:] < size
+    seen_lo = ((np.abs(lo_box - lo_p) <= tol) & (hi_box < hi_p - tol)
+               | smaller & cut[:, :, 1] & ~cut[:, :, 0])
+    seen_hi = ((np.abs(hi_box - hi_p) <= tol) & (lo_box > lo_p + tol)
+               | smaller & cut[:, :, 0] & ~cut[:, :, 1])
     z, var = nested_centre(pred, size, boxes, sigma)
     one = sigma**2 + size_var / 4
     z = np.where(seen_lo, lo_box + size / 2, np.where(seen_hi, hi_box - size / 2, z))

@@ -7,6 +7,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+OWN = 9  # detections whose median gives a vehicle's own size (box_size.py)
+
 
 @dataclass
 class TrackTable:
@@ -20,6 +22,7 @@ class TrackTable:
     mismatch_sign: np.ndarray  # (N, 2) in which direction (+1 larger, -1 smaller, 0 none)
     ref_p: np.ndarray      # (N, 2) a whole-vehicle box's centre kept for the scale field
     ref_s: np.ndarray      # (N,) and its scale (nan: none yet)
+    own: np.ndarray        # (N, OWN, 2) ln((w, h) / k) of the last detections (nan: none)
     origin: np.ndarray     # (N, 4) the first detected box's edges x0, y0, x1, y1
     last_box: np.ndarray   # (N, 4) the last detected box's edges
     hist_p: np.ndarray     # (N, 3, 2) last three detected centres, newest first
@@ -76,6 +79,7 @@ class TrackTable:
         self.P = T @ self.P @ T.T
         scale = float(np.sqrt(abs(np.linalg.det(A))))
         self.s[:, :2] += np.log(scale)
+        self.own += np.log(scale)
         self.hist_s = self.hist_s * scale
         for edges in (self.origin, self.last_box):  # corners moved (boxes stay axis-aligned)
             edges[:, :2] = edges[:, :2] @ A.T + b
@@ -101,7 +105,7 @@ class TrackTable:
 _LAYOUT = {  # per-track shape and dtype of each column
     "x": ((6,), float), "P": ((6, 6), float), "s": ((4,), float), "Ps": ((4, 4), float),
     "mismatch_t": ((2,), float), "mismatch_sign": ((2,), float), "ref_p": ((2,), float),
-    "ref_s": ((), float), "origin": ((4,), float),
+    "ref_s": ((), float), "own": ((OWN, 2), float), "origin": ((4,), float),
     "last_box": ((4,), float), "hist_p": ((3, 2), float),
     "hist_t": ((3,), float), "hist_s": ((3, 2), float), "count": ((), int),
     "hitmask": ((), np.int64), "misses": ((), int), "killed": ((), bool), "standing": ((), bool),

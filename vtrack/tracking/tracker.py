@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 
 from vtrack.boxes import intersection
 from vtrack.tracking.associator import Associator, detection_sigma
-from vtrack.tracking.box_size import BoxSizeFilter
+from vtrack.tracking.box_size import BoxSizeFilter, anchored, own_size, remember_size
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
 from vtrack.tracking.lifecycle import Confirmer, Initiator, fate, record_hits
@@ -208,8 +208,15 @@ class Tracker:
             return np.zeros(0)
         size, pos_var = tracks.size[mt], tracks.P[mt][:, [0, 1], [0, 1]]
         size_var = self.sizes.px_var(tracks.s[mt], tracks.Ps[mt])
-        whole = self.sizes.update(tracks, mt, boxes[:, 2:],
-                                  border_cut(boxes, self.width, self.height).any(axis=2), t)
+        edges_cut = border_cut(boxes, self.width, self.height)
+        cut = edges_cut.any(axis=2)
+        partial = anchored(tracks, mt, boxes, t)
+        expected, spread = own_size(tracks.own[mt], self.field.k(tracks.x[mt, :2]))
+        known = cfg.own_size & ~partial[:, None]
+        whole = self.sizes.update(tracks, mt, boxes[:, 2:], cut, t,
+                                  np.where(known, expected, np.nan), spread)
+        remember_size(tracks, mt, boxes, self.field.k(boxes[:, :2] + boxes[:, 2:] / 2),
+                      cut.any(axis=1) | partial)
         self._learn_scale(mt[whole.all(axis=1) & ~split], boxes[whole.all(axis=1) & ~split])
         if split.any():
             k = mt[split]
@@ -218,7 +225,7 @@ class Tracker:
             tracks.s[k], tracks.Ps[k] = s_new, Ps_new
         sigma = detection_sigma(cfg, np.sqrt(size.prod(axis=1)))[:, None]
         centers, var = box_centre(tracks.x[mt, :2], pos_var, size, size_var, boxes, whole,
-                                  sigma)
+                                  sigma, edges_cut)
         for hist, newest in ((tracks.hist_s, np.sqrt(var)), (tracks.hist_p, centers),
                              (tracks.hist_t, t)):
             hist[mt, 1:] = hist[mt, :-1]  # fancy indexing copies before the write
