@@ -137,9 +137,10 @@ def own_size(own: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     their last detections each divided by the field there (s = m k(p), scale_field.py):
     exp(median) k and 1.4826 MAD. nan until OWN detections, and where the middle ones
     disagree by more than OWN_SPREAD (a vehicle seen now whole, now in pieces)."""
-    m = np.median(own, axis=1)
+    ranked = np.sort(own, axis=1)                  # nan (not yet seen) sorts last
+    m = np.where(np.isnan(ranked[:, -1]), np.nan, ranked[:, own.shape[1] // 2])
     sigma = 1.4826 * np.median(np.abs(own - m[:, None]), axis=1)
-    m[np.ptp(np.sort(own, axis=1)[:, 1:-1], axis=1) > OWN_SPREAD] = np.nan
+    m[ranked[:, -2] - ranked[:, 1] > OWN_SPREAD] = np.nan
     return np.exp(m) * k[:, None], sigma
 
 

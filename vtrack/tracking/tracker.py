@@ -210,13 +210,14 @@ class Tracker:
         size_var = self.sizes.px_var(tracks.s[mt], tracks.Ps[mt])
         edges_cut = border_cut(boxes, self.width, self.height)
         cut = edges_cut.any(axis=2)
-        partial = anchored(tracks, mt, boxes, t)
-        expected, spread = own_size(tracks.own[mt], self.field.k(tracks.x[mt, :2]))
-        known = cfg.own_size & ~partial[:, None]
-        whole = self.sizes.update(tracks, mt, boxes[:, 2:], cut, t,
-                                  np.where(known, expected, np.nan), spread)
-        remember_size(tracks, mt, boxes, self.field.k(boxes[:, :2] + boxes[:, 2:] / 2),
-                      cut.any(axis=1) | partial)
+        expected = spread = np.full((len(mt), 2), np.nan)
+        if cfg.own_size:
+            partial = anchored(tracks, mt, boxes, t)
+            expected, spread = own_size(tracks.own[mt], self.field.k(tracks.x[mt, :2]))
+            expected[partial] = np.nan
+            remember_size(tracks, mt, boxes, self.field.k(boxes[:, :2] + boxes[:, 2:] / 2),
+                          cut.any(axis=1) | partial)
+        whole = self.sizes.update(tracks, mt, boxes[:, 2:], cut, t, expected, spread)
         self._learn_scale(mt[whole.all(axis=1) & ~split], boxes[whole.all(axis=1) & ~split])
         if split.any():
             k = mt[split]

@@ -17,7 +17,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from vtrack.boxes import intersection
+from vtrack.boxes import intersection, overlap_of_smaller
 
 REACH = 1.5        # pixels beyond 1.5 half-sizes of every predicted box belong to none
 MIN_COVER = 0.5    # share of a predicted box that must lie on the blob's bounding box
@@ -36,9 +36,7 @@ def holders(blob: np.ndarray, priors: np.ndarray) -> np.ndarray:
     idx = np.flatnonzero(inside & (cover >= MIN_COVER))
     keep: list[int] = []
     for i in idx:
-        ov = intersection(priors[i], priors[keep]) if keep else np.zeros(0)
-        smaller = np.minimum(priors[i, 2] * priors[i, 3], priors[keep, 2] * priors[keep, 3])
-        if not np.any(ov > MAX_OVERLAP * smaller):
+        if not keep or not np.any(overlap_of_smaller(priors[i], priors[keep]) > MAX_OVERLAP):
             keep.append(int(i))
     return np.array(keep if len(keep) >= 2 else [], dtype=int)
 
