@@ -234,3 +234,43 @@ def test_rows_of_a_vehicle_leaving_the_image_have_visible_boxes():
     rows = np.array(rows)
     assert len(rows) > 0
     assert np.all(rows[:, 4] >= 1.0) and np.all(rows[:, 5] >= 1.0)
+
+
+def test_coasted_rows_are_reported_only_when_the_reacquisition_confirms_them():
+    """Two vehicles, each unseen for 8 frames. One drives on as predicted: its gap is filled
+    with coasted rows. The other halves its speed while unseen: the detection that
+    re-acquires it (same id) is 19 px behind the prediction (IoU 0.36 for its 40 px box),
+    refutes the coasted rows, and none are reported for its gap."""
+    gaps = set(range(60, 68))
+
+    def on(t):
+        return (40 + 120 * t, 100.0)
+
+    def slowing(t):
+        n = round(t * FPS) + 1
+        return (40 + 120 * (min(n, 60) - 1) / FPS + 60 * max(n - 60, 0) / FPS, 250.0)
+
+    rows, _ = _run([on, slowing], gaps=gaps, frames=90, noise=0.3)
+    by_lane = {lane: {r.frame: r for r in rows if abs(r.box[1] + 10 - lane) < 20}
+               for lane in (100, 250)}
+    assert {r.id for r in by_lane[100].values()} == {1}
+    assert {r.id for r in by_lane[250].values()} == {2}
+    assert all(n in by_lane[100] and by_lane[100][n].conf < 1 for n in gaps)
+    assert not any(n in by_lane[250] for n in gaps)
+    assert by_lane[250][59].conf == 1.0 and by_lane[250][68].conf == 1.0
+
+
+def test_detected_rows_show_the_whole_vehicle_detection_box():
+    """An approaching vehicle's box grows 3 % a frame; the filtered size lags such growth,
+    a detected row shows the detection's box."""
+    def growing(t):
+        s = 1.03 ** (t * FPS)
+        w, h = 30 * s, 16 * s
+        x, y = 100 + 60 * t, 100 + 20 * t
+        return [(x - w / 2, y - h / 2, w, h)]
+
+    states = _run_boxes(growing, frames=40, noise=0.0)
+    rows = np.array([r for s in states for r in s.rows])
+    assert len(rows) > 30
+    truth = np.array([growing((f - 1) / FPS)[0] for f in rows[:, 0]])
+    assert np.allclose(rows[:, 2:6], truth, atol=1e-6)

@@ -3,8 +3,12 @@ vehicle.
 
 Rows wait until then: a tentative track's rows until it is confirmed (they are reported with
 its new id, so its start is not lost); a coasting track's predicted rows until a detection
-re-acquires it or its prediction leaves the image. A track deleted after `max_coast_seconds`
-without a detection never got its vehicle back, so its trailing predictions are dropped.
+re-acquires it or its prediction leaves the image. A coasted stretch is reported only if the
+detection that ends it confirms the prediction -- the predicted box and the updated box
+overlap with IoU >= `ON_COURSE_IOU`, the MOT matching criterion: where they do not, the
+prediction had drifted off the vehicle (or onto another) and its rows would be false
+positives. A track deleted after `max_coast_seconds` without a detection never got its
+vehicle back, so its trailing predictions are dropped.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import numpy as np
 from vtrack.tracking.table import TrackTable
 
 ROW_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf")  # conf 1 = detected, < 1 = coasted
+ON_COURSE_IOU = 0.5  # a re-acquisition this close to the prediction confirms the coasted rows
 
 
 class RowReporter:
@@ -28,10 +33,12 @@ class RowReporter:
         self.pending: dict[int, deque[np.ndarray]] = {}
 
     def rows(self, frame: int, t: float, tracks: TrackTable, boxes: np.ndarray,
-             hit: np.ndarray, inside: np.ndarray, alive: np.ndarray) -> np.ndarray:
+             hit: np.ndarray, on_course: np.ndarray, inside: np.ndarray, alive: np.ndarray
+             ) -> np.ndarray:
         """The rows (R, 7) of ROW_COLUMNS that became final this frame; `boxes` are the
-        tracks' boxes clipped to the image. conf is 1 for a detected row and falls from 0.95
-        to 0.05 over the coasting limit."""
+        tracks' boxes clipped to the image; on_course marks the hit tracks whose detection
+        confirms their prediction. conf is 1 for a detected row and falls from 0.95 to 0.05
+        over the coasting limit."""
         conf = np.where(hit, 1.0,
                         np.clip(1.0 - (t - tracks.hist_t[:, 0]) / (self.max_coast + 1e-9),
                                 0.05, 0.95))
@@ -55,6 +62,8 @@ class RowReporter:
                 else:
                     self.pending.pop(uid, None)
                 continue
+            if hit[i] and not on_course[i] and uid in self.pending:
+                drop_coasted_tail(self.pending[uid])
             if visible[i]:
                 self.pending.setdefault(uid, deque(maxlen=self.MAX_PENDING)).append(rows[i])
             if confirmed[i] and hit[i] and uid in self.pending:
@@ -62,3 +71,10 @@ class RowReporter:
                 back[:, 1] = tracks.id[i]
                 out.append(back)
         return np.vstack(out) if out else np.zeros((0, 7))
+
+
+def drop_coasted_tail(rows: deque[np.ndarray]) -> None:
+    """Remove the coasted rows (conf < 1) at the end of `rows`: the stretch since the last
+    detection."""
+    while rows and rows[-1][6] < 1.0:
+        rows.pop()

@@ -7,6 +7,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from vtrack.boxes import clip
+
 OWN = 9  # detections whose median gives a vehicle's own size (box_size.py)
 
 
@@ -94,12 +96,8 @@ class TrackTable:
 
     def boxes(self, width: int, height: int) -> np.ndarray:
         """Boxes (x, y, w, h) centred on the filtered positions, clipped to the image."""
-        half = self.size / 2
-        x0 = np.clip(self.x[:, 0] - half[:, 0], 0, width)
-        y0 = np.clip(self.x[:, 1] - half[:, 1], 0, height)
-        x1 = np.clip(self.x[:, 0] + half[:, 0], 0, width)
-        y1 = np.clip(self.x[:, 1] + half[:, 1], 0, height)
-        return np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)
+        size = self.size
+        return clip(np.hstack([self.x[:, :2] - size / 2, size]), width, height)
 
 
 _LAYOUT = {  # per-track shape and dtype of each column

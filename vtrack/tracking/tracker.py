@@ -20,14 +20,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from vtrack.boxes import intersection
+from vtrack.boxes import clip, intersection, paired_iou
 from vtrack.tracking.associator import Associator, detection_sigma
 from vtrack.tracking.box_size import BoxSizeFilter, anchored, own_size, remember_size
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
 from vtrack.tracking.lifecycle import Confirmer, Initiator, fate, record_hits
 from vtrack.tracking.measurements import border_cut, box_centre, measurement_model
-from vtrack.tracking.reporter import ROW_COLUMNS, RowReporter
+from vtrack.tracking.reporter import ON_COURSE_IOU, ROW_COLUMNS, RowReporter
 from vtrack.tracking.scale_field import ScaleField
 from vtrack.tracking.table import TrackTable
 
@@ -116,7 +116,10 @@ class Tracker:
         a = self.associator.associate(tracks, t, centers, boxes)
         tracks.killed[a.duplicates] = True
         innov = np.full(len(tracks), np.nan)
-        innov[a.tracks] = self._update(a.tracks, a.boxes[a.detections], t, a.split[a.tracks])
+        predicted = tracks.boxes(self.width, self.height)[a.tracks]
+        innov[a.tracks], whole = self._update(a.tracks, a.boxes[a.detections], t,
+                                              a.split[a.tracks])
+        whole &= ~a.split[a.tracks]
         hit = np.zeros(len(tracks), dtype=bool)
         hit[a.tracks] = True
         det_of = np.full(len(tracks), -1)
@@ -129,15 +132,21 @@ class Tracker:
         self._start(t, a.centers[started], a.boxes[started])
         new = np.arange(n_old, len(tracks))
         innov = np.concatenate([innov, self._update(new, a.boxes[started], t,
-                                                    np.zeros(len(new), dtype=bool))])
+                                                    np.zeros(len(new), dtype=bool))[0]])
         det_of = np.concatenate([det_of, started])
         hit = np.concatenate([hit, np.ones(len(new), dtype=bool)])
         record_hits(tracks, hit, self.confirmer.window, self.cfg.stand_speed)
 
         inside, alive = fate(tracks, t, self.width, self.height, self.cfg)
         self.confirmer.confirm(tracks, hit, inside & alive)
-        rows = self.reporter.rows(frame, t, tracks, tracks.boxes(self.width, self.height),
-                                  hit, inside, alive)
+        # A detected row shows the detection's box where it showed the whole vehicle (the
+        # filtered box lags a vehicle's change of size); a re-acquired track's coasted rows
+        # are reported only if the detection confirms where the prediction put it.
+        shown = tracks.boxes(self.width, self.height)
+        shown[a.tracks[whole]] = clip(a.boxes[a.detections][whole], self.width, self.height)
+        on_course = np.ones(len(tracks), dtype=bool)
+        on_course[a.tracks] = paired_iou(predicted, shown[a.tracks]) >= ON_COURSE_IOU
+        rows = self.reporter.rows(frame, t, tracks, shown, hit, on_course, inside, alive)
         keep = inside & alive
         self.bank.forget(tracks.uid[~keep])
         tracks.keep(keep)
@@ -202,10 +211,11 @@ class Tracker:
         """Update tracks `mt` with their detected boxes at time t: the box size where the
         detection shows the whole vehicle (box_size.py; a split track's size starts again
         from its piece), the centre from the nested boxes (seed 001 eqs. 24-26). Returns
-        the NIS."""
+        the NIS and whether each detection showed the whole vehicle (no side partial or
+        cut by the image border)."""
         cfg, tracks = self.cfg, self.tracks
         if len(mt) == 0:
-            return np.zeros(0)
+            return np.zeros(0), np.zeros(0, dtype=bool)
         size, pos_var = tracks.size[mt], tracks.P[mt][:, [0, 1], [0, 1]]
         size_var = self.sizes.px_var(tracks.s[mt], tracks.Ps[mt])
         edges_cut = border_cut(boxes, self.width, self.height)
@@ -235,4 +245,5 @@ class Tracker:
         tracks.last_box[mt] = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
         z, Hm, R, mask = measurement_model(tracks.hist_p[mt], tracks.hist_t[mt],
                                            tracks.count[mt], tracks.hist_s[mt], cfg.measurement)
-        return self.bank.update(tracks, mt, z, Hm, R, mask)
+        nis = self.bank.update(tracks, mt, z, Hm, R, mask)
+        return nis, whole.all(axis=1) & ~cut.any(axis=1)
