@@ -1,0 +1,37 @@
+"""Box geometry (vtrack/boxes.py) against areas worked out by hand."""
+
+import numpy as np
+
+from vtrack.boxes import clip, intersection, iou, overlap_of_smaller, paired_iou
+
+
+def test_paired_iou_of_hand_worked_pairs():
+    a = np.array([[0, 0, 10, 10], [0, 0, 10, 10], [0, 0, 10, 10], [5, 5, 2, 2]], float)
+    b = np.array([[0, 0, 10, 10], [5, 0, 10, 10], [20, 20, 5, 5], [0, 0, 10, 10]], float)
+    # identical; half shifted: 50 / (100 + 100 - 50); disjoint; nested: 4 / 100
+    assert np.allclose(paired_iou(a, b), [1.0, 50 / 150, 0.0, 0.04])
+    assert np.allclose(intersection(a, b), [100, 50, 0, 4])
+
+
+def test_iou_matrix_is_the_pairs_of_every_row_and_column():
+    rng = np.random.default_rng(0)
+    a = np.column_stack([rng.uniform(0, 50, (5, 2)), rng.uniform(1, 30, (5, 2))])
+    b = np.column_stack([rng.uniform(0, 50, (7, 2)), rng.uniform(1, 30, (7, 2))])
+    m = iou(a, b)
+    assert m.shape == (5, 7)
+    for i in range(5):
+        assert np.allclose(m[i], paired_iou(np.repeat(a[i:i + 1], 7, axis=0), b))
+    assert np.allclose(iou(b, a), m.T)
+
+
+def test_overlap_of_smaller_and_degenerate_boxes():
+    box = np.array([0, 0, 10, 10], float)
+    others = np.array([[2, 2, 4, 4], [5, 5, 10, 10], [0, 0, 0, 0]], float)
+    assert np.allclose(overlap_of_smaller(box, others), [1.0, 25 / 100, 0.0])
+    assert paired_iou(np.zeros(4), np.zeros(4)) == 0.0   # two empty boxes: no overlap
+
+
+def test_clip_cuts_boxes_to_the_image():
+    boxes = np.array([[-5, -5, 10, 10], [630, 350, 20, 20], [700, 0, 10, 10]], float)
+    assert np.allclose(clip(boxes, 640, 360),
+                       [[0, 0, 5, 5], [630, 350, 10, 10], [640, 0, 0, 10]])
