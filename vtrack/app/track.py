@@ -138,8 +138,8 @@ class TrackJob:
         for frame in self.reader:
             # The tracker predicts once the detector knows the camera's motion, so that
             # blobs holding several predicted vehicles can be divided among them.
-            dets = detector.detect(frame.image,
-                                   lambda motion: tracker.predict(frame.time, motion))
+            fg = detector.segment(frame.image)
+            dets = detector.locate(fg, lambda motion: tracker.predict(frame.time, motion))
             ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes)
             self.frames = frame.index
             if self.detections is not None:
@@ -152,7 +152,7 @@ class TrackJob:
             if self.opts.save_frames or writer is not None:
                 self._annotate(frame, ft, dets, writer)
             if logger is not None:
-                logger.log_frame(frame, dets, ft, detector.foreground)
+                logger.log_frame(frame, dets, ft, fg.mask)
                 logger.log_trails(self.trails.paths)
             self.elapsed = time.perf_counter() - t0
             if bar is not None:

@@ -1,6 +1,9 @@
 """Moving-vehicle detector: one interface (`MotionDetector.detect`) over named stages:
-prepare (prepare.py) -> background (background.py) -> shadows (shadows.py) -> blobs
-(blobs.py).
+prepare (prepare.py) -> stabilise (stabilise.py) -> background (background.py) -> shadows
+(shadows.py) -> blobs and split (blobs.py, split.py). `detect` is `locate(segment(image))`:
+`segment` runs the image stages, which need no track state, and returns what they found
+(`Foreground`); `locate` runs the blob stages on it, which divide merged blobs among the
+tracker's predictions.
 
 Per frame, at the detection resolution (frames wider than `detect_width` are halved until
 they fit: MOG2 costs ~10x decoding at full HD resolution):
@@ -45,7 +48,7 @@ from vtrack.vision.shadows import drop_shadows, textured_shadow
 from vtrack.vision.split import holders, split_blob
 from vtrack.vision.stabilise import IDENTITY, Stabiliser, compose, invert, rescale, transform_boxes
 
-__all__ = ["DetectorConfig", "Detections", "MotionDetector", "downscale_factor"]
+__all__ = ["DetectorConfig", "Detections", "Foreground", "MotionDetector", "downscale_factor"]
 
 
 def _f(default: Any, help_: str) -> Any:
@@ -153,6 +156,17 @@ class Detections:
                           IDENTITY.copy() if motion is None else motion)
 
 
+@dataclass
+class Foreground:
+    """One frame after the detector's image stages (`MotionDetector.segment`)."""
+
+    mask: np.ndarray            # cleaned foreground (0/255) at the detection resolution
+    moving: np.ndarray | None   # what changed over the last 2 frames (blobs.MotionMap)
+    motion: np.ndarray          # (2, 3) camera motion: the previous frame -> this one
+    camera: np.ndarray          # (2, 3) the stabiliser's reference -> this frame
+    learning: bool              # still in the warm-up: no detections yet
+
+
 class MotionDetector:
     """MOG2 detector for one video of a fixed frame size; call `detect` once per frame."""
 
@@ -198,13 +212,16 @@ class MotionDetector:
         if self.gain is not None:
             median = self.gain(median)
         self.background.initialise(median)
+
     def detect(self, image: np.ndarray,
                priors: Callable[[np.ndarray], np.ndarray] | None = None) -> Detections:
-        """Update the background with `image` (HxWx3 BGR uint8) and return its blobs.
+        """Update the background with `image` (HxWx3 BGR uint8) and return its blobs:
+        `locate(segment(image), priors)`."""
+        return self.locate(self.segment(image), priors)
 
-        priors(motion), when given, is called once per frame as soon as the camera's motion
-        (2, 3) is known and returns the tracked vehicles' predicted boxes (K, 4) in this
-        frame's pixels: a blob holding several of them is divided among them (split.py)."""
+    def segment(self, image: np.ndarray) -> Foreground:
+        """The image stages (prepare, stabilise, gain, MOG2, shadows, morphology, motion
+        map) of the next frame, in frame order; they need no track state."""
         cfg = self.cfg
         small = self.prepare(image)
         motion = IDENTITY
@@ -213,7 +230,6 @@ class MotionDetector:
             camera = rescale(m, self._sx, self._sy)
             motion = compose(camera, invert(self._camera))
             self._camera = camera
-        predicted = priors(motion) if priors is not None else np.zeros((0, 4))
         if self.gain is not None:
             small = self.gain(small)
         raw = self.background.apply(small)
@@ -225,23 +241,36 @@ class MotionDetector:
         moving = None
         if self.motion is not None:
             moving = self.motion(small if small is not image else image.copy())
-        if self.frames <= cfg.warmup_frames and not self.background.primed:
-            return Detections.empty(motion)
-        boxes, areas, contours = find_blobs(self.foreground, moving, self._sx, self._sy,
+        learning = self.frames <= cfg.warmup_frames and not self.background.primed
+        return Foreground(self.foreground, moving, motion, self._camera, learning)
+
+    def locate(self, fg: Foreground,
+               priors: Callable[[np.ndarray], np.ndarray] | None = None) -> Detections:
+        """The blobs of a segmented frame, in its pixels.
+
+        priors(motion), when given, is called once per frame with the camera's motion
+        (2, 3) and returns the tracked vehicles' predicted boxes (K, 4) in this frame's
+        pixels: a blob holding several of them is divided among them (split.py)."""
+        cfg = self.cfg
+        predicted = priors(fg.motion) if priors is not None else np.zeros((0, 4))
+        if fg.learning:
+            return Detections.empty(fg.motion)
+        boxes, areas, contours = find_blobs(fg.mask, fg.moving, self._sx, self._sy,
                                             cfg.min_pixels, cfg.min_area,
                                             cfg.max_area_fraction * self.width * self.height,
                                             cfg.min_fill, cfg.min_motion)
         if cfg.split_merged and len(boxes) and len(predicted) >= 2:
-            boxes, areas = self._split(boxes, areas, contours, predicted)
-        boxes = transform_boxes(self._camera, boxes)  # the reference's pixels -> this frame's
-        return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas, motion)
+            boxes, areas = self._split(boxes, areas, contours, predicted, fg.camera)
+        boxes = transform_boxes(fg.camera, boxes)  # the reference's pixels -> this frame's
+        return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas, fg.motion)
 
     def _split(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
-               predicted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+               predicted: np.ndarray, camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Blobs (full resolution, reference pixels) holding several predicted boxes (this
-        frame's pixels) replaced by their pieces (split.py)."""
+        frame's pixels; `camera` maps the reference onto it) replaced by their pieces
+        (split.py)."""
         scale = np.array([self._sx, self._sy, self._sx, self._sy])
-        pred = transform_boxes(invert(self._camera), predicted) / scale  # mask pixels
+        pred = transform_boxes(invert(camera), predicted) / scale  # mask pixels
         out_b, out_a = [], []
         for box, area, contour in zip(boxes, areas, contours, strict=True):
             held = holders(box / scale, pred)
