@@ -20,27 +20,15 @@ import numpy as np
 from vtrack.analytics.regions import parse_count_line
 from vtrack.app.config import AppConfig
 from vtrack.app.track import TrackOptions, track_video
+from vtrack.sim.clip import render_default
 
 SCENES = ("overhead", "mast", "side", "junction")
 W, H, FPS, FRAMES = 640, 360, 25.0, 200
 
 
-def _render(scene: str, out: Path) -> None:
-    if scene == "overhead":
-        from vtrack.sim.traffic import render_scene
-
-        render_scene(out, frames=FRAMES, vehicles=12, width=W, height=H, fps=FPS, seed=0)
-    else:
-        from vtrack.sim.clip import render_preset
-        from vtrack.sim.nuisance import parse_nuisances
-
-        render_preset(out, scene, frames=FRAMES, width=W, height=H, fps=FPS, seed=0,
-                      nuisances=parse_nuisances("all"))
-
-
 def _tile(scene: str, frame: int, work: Path) -> np.ndarray:
     clip, run = work / scene / "clip", work / scene / "run"
-    _render(scene, clip)
+    render_default(clip, scene, frames=FRAMES, width=W, height=H, fps=FPS, seed=0)
     cfg = AppConfig()
     cfg.count_lines = [parse_count_line("line", [0, 0.6 * H, W, 0.6 * H])]
     track_video(clip / "video.avi", run, cfg, TrackOptions(save_frames=True))

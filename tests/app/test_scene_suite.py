@@ -18,6 +18,7 @@ import pytest
 from vtrack.app.config import AppConfig
 from vtrack.app.track import TrackOptions, track_video
 from vtrack.evaluation.mot import evaluate
+from vtrack.sim.clip import render_default
 
 SHARED_VIDEOS = Path(__file__).resolve().parents[3] / "shared" / "videos"
 MARGIN = 0.05
@@ -45,18 +46,8 @@ REAL = {
 
 
 def _render(scene: str, seed: int, out: Path) -> Path:
-    if scene == "overhead":
-        from vtrack.sim.traffic import render_scene
-
-        render_scene(out, frames=FRAMES, vehicles=12, width=640, height=360, fps=25.0,
-                     seed=seed)
-    else:
-        from vtrack.sim.clip import render_preset
-        from vtrack.sim.nuisance import parse_nuisances
-
-        render_preset(out, scene, frames=FRAMES, width=640, height=360, fps=25.0, seed=seed,
-                      nuisances=parse_nuisances("all"))   # as `vtrack synth` and the suite
-    return out
+    render_default(out, scene, frames=FRAMES, width=640, height=360, fps=25.0, seed=seed)
+    return out   # as `vtrack synth` and the suite
 
 
 @pytest.mark.parametrize("scene,seed", sorted(MEASURED))

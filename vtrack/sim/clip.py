@@ -359,3 +359,20 @@ def render_preset(out_dir: str | os.PathLike, scene: str, frames: int = 300,
     return ClipResult(out / "video.avi", out / "gt.csv", out / "world.csv",
                       out / "calibration.toml", frames, width, height, len(book.ids),
                       len(gt_rows), quality, time.perf_counter() - started)
+
+
+def render_default(out_dir: str | os.PathLike, scene: str, frames: int = 300,
+                   width: int = 640, height: int = 360, fps: float = 25.0,
+                   seed: int = 0) -> None:
+    """A clip of any scene as `vtrack synth` renders it by default: the overhead road
+    (vtrack.sim.traffic, 12 vehicles, no nuisances) or a perspective preset with every
+    nuisance."""
+    if scene == "overhead":
+        from vtrack.sim.traffic import render_scene
+
+        render_scene(out_dir, frames=frames, width=width, height=height, fps=fps, seed=seed)
+        return
+    from vtrack.sim.nuisance import parse_nuisances
+
+    render_preset(out_dir, scene, frames=frames, width=width, height=height, fps=fps,
+                  seed=seed, nuisances=parse_nuisances("all"))

@@ -9,8 +9,9 @@ overlap with IoU >= `ON_COURSE_IOU`, the MOT matching criterion: where they do n
 prediction had drifted off the vehicle (or onto another) and its rows would be false
 positives. A stretch that ends with the prediction leaving the image has no detection to
 confirm or refute it and is reported (a vehicle lost before a counting line and coasting
-over it still counts; dropping these rows too cost a count on a real clip). A track deleted after `max_coast_seconds` without a detection never got its
-vehicle back, so its trailing predictions are dropped.
+over it still counts; dropping these rows too cost a count on a real clip). A track
+deleted after `max_coast_seconds` without a detection never got its vehicle back, so its
+trailing predictions are dropped.
 """
 
 from __future__ import annotations

@@ -119,7 +119,6 @@ class Tracker:
         predicted = tracks.boxes(self.width, self.height)[a.tracks]
         innov[a.tracks], whole = self._update(a.tracks, a.boxes[a.detections], t,
                                               a.split[a.tracks])
-        whole &= ~a.split[a.tracks]
         hit = np.zeros(len(tracks), dtype=bool)
         hit[a.tracks] = True
         det_of = np.full(len(tracks), -1)
@@ -142,7 +141,8 @@ class Tracker:
         # A detected row shows the detection's box where it showed the whole vehicle (the
         # filtered box lags a vehicle's change of size); a re-acquired track's coasted rows
         # are reported only if the detection confirms where the prediction put it.
-        shown = tracks.boxes(self.width, self.height)
+        filtered = tracks.boxes(self.width, self.height)
+        shown = filtered.copy()
         shown[a.tracks[whole]] = clip(a.boxes[a.detections][whole], self.width, self.height)
         on_course = np.ones(len(tracks), dtype=bool)
         on_course[a.tracks] = paired_iou(predicted, shown[a.tracks]) >= ON_COURSE_IOU
@@ -152,8 +152,7 @@ class Tracker:
         tracks.keep(keep)
         hit, innov, det_of = hit[keep], innov[keep], det_of[keep]
         conf = tracks.id > 0
-        return FrameTracks(ids=tracks.id[conf].copy(),
-                           boxes=tracks.boxes(self.width, self.height)[conf],
+        return FrameTracks(ids=tracks.id[conf].copy(), boxes=filtered[keep][conf],
                            coasted=~hit[conf], states=tracks.x[conf].copy(),
                            covariances=tracks.P[conf].copy(), innovations=innov[conf],
                            rows=rows, detection_of=det_of[conf],
@@ -212,7 +211,7 @@ class Tracker:
         detection shows the whole vehicle (box_size.py; a split track's size starts again
         from its piece), the centre from the nested boxes (seed 001 eqs. 24-26). Returns
         the NIS and whether each detection showed the whole vehicle (no side partial or
-        cut by the image border)."""
+        cut by the image border, not a piece of a split blob)."""
         cfg, tracks = self.cfg, self.tracks
         if len(mt) == 0:
             return np.zeros(0), np.zeros(0, dtype=bool)
@@ -227,8 +226,10 @@ class Tracker:
             expected[partial] = np.nan
             remember_size(tracks, mt, boxes, self.field.k(boxes[:, :2] + boxes[:, 2:] / 2),
                           cut.any(axis=1) | partial)
+        # A whole side is never a border-cut one (box_size.py), so `shows_whole` has no cut.
         whole = self.sizes.update(tracks, mt, boxes[:, 2:], cut, t, expected, spread)
-        self._learn_scale(mt[whole.all(axis=1) & ~split], boxes[whole.all(axis=1) & ~split])
+        shows_whole = whole.all(axis=1) & ~split
+        self._learn_scale(mt[shows_whole], boxes[shows_whole])
         if split.any():
             k = mt[split]
             s_new, Ps_new = self.sizes.initial(boxes[split, 2:], cfg.init_size_rate_sigma)
@@ -245,5 +246,4 @@ class Tracker:
         tracks.last_box[mt] = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
         z, Hm, R, mask = measurement_model(tracks.hist_p[mt], tracks.hist_t[mt],
                                            tracks.count[mt], tracks.hist_s[mt], cfg.measurement)
-        nis = self.bank.update(tracks, mt, z, Hm, R, mask)
-        return nis, whole.all(axis=1) & ~cut.any(axis=1)
+        return self.bank.update(tracks, mt, z, Hm, R, mask), shows_whole
