@@ -8,8 +8,9 @@ the `trackers` package (Roboflow), on exactly the MOG2 detections vtrack's detec
 for that clip (`vtrack track --save-detections`), counted with the same line rule. Prints one
 table: per synthetic clip MOTA, IDF1, HOTA, ID switches, FP, FN per tracker and the recall of
 the raw detections (the detector's ceiling: a loss above it is the tracker's, below it the
-detector's); per real clip and line the counts beside the hand range; the mean and the worst
-per column.
+detector's); per synthetic clip the counts on two lines (y = 0.6 H and x = 0.5 W) beside the
+true counts, which the same line rule gives on the ground truth's boxes; per real clip and
+line the counts beside the hand range; the mean and the worst per column.
 
     .venv/bin/python scripts/eval_suite.py                 # the whole suite, 2 workers
     .venv/bin/python scripts/eval_suite.py --json suite.json
@@ -41,6 +42,13 @@ SCENES = ("overhead", "mast", "side", "junction")
 PEERS = ("sort", "bytetrack")
 METRICS = ("mota", "idf1", "hota", "id_switches", "false_positives", "misses")
 HIGHER_IS_BETTER = {"mota", "idf1", "hota"}
+
+
+def synth_lines(width: int, height: int) -> list[tuple[str, list[float]]]:
+    """The counting lines of a synthetic clip: across the image at 0.6 of its height (as on
+    the real clips) and down it at half its width (the overhead and side roads run across)."""
+    return [("0.60 H", [0.0, 0.6 * height, width, 0.6 * height]),
+            ("0.50 W", [0.5 * width, 0.0, 0.5 * width, height])]
 
 
 @dataclass(frozen=True)
@@ -75,7 +83,8 @@ class Result:
     frames: int = 0
     scores: dict[str, dict] = field(default_factory=dict)   # tracker -> metrics
     counts: dict[str, list] = field(default_factory=dict)   # tracker -> [[fwd, bwd], ...]
-    hand: list = field(default_factory=list)                # [[y, [lo, hi], [lo, hi]], ...]
+    hand: list = field(default_factory=list)   # [[line, [lo, hi], [lo, hi]], ...]: the hand
+    #                                            range (real) or the true count (synthetic)
     detector: dict = field(default_factory=dict)            # recall, precision (synthetic)
     error: str = ""
 
@@ -201,7 +210,9 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
         out = work / clip.name
         if synthetic:
             src = render(clip, cache)
-            video, lines = src / "video.avi", []
+            video = src / "video.avi"
+            named = synth_lines(clip.width, clip.height)
+            lines = [line for _, line in named]
         else:
             video = VIDEOS / clip.file
             import cv2
@@ -210,7 +221,7 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
             w, h = cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
             cap.release()
             lines = [[0.0, y * h, w, y * h] for y, _, _ in clip.lines]
-            res.hand = [[y, list(f), list(b)] for y, f, b in clip.lines]
+            res.hand = [[f"{y:.2f} H", list(f), list(b)] for y, f, b in clip.lines]
         summary = track(video, out, lines, config)
         res.frames = summary["frames"]
         outputs = {"vtrack": out / "tracks.csv"}
@@ -221,12 +232,13 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
         if synthetic:
             res.detector = detection_scores(read_mot(src / "gt.csv"),
                                             read_detections(out / "detections.csv"))
+            truth = count(src / "gt.csv", lines, summary["fps_video"])
+            res.hand = [[label, [f, f], [b, b]] for (label, _), (f, b) in zip(named, truth)]
         for name, path in outputs.items():
             if synthetic:
                 s = evaluate(src / "gt.csv", path)
                 res.scores[name] = {k: s[k] for k in METRICS}
-            else:
-                res.counts[name] = count(path, lines, summary["fps_video"])
+            res.counts[name] = count(path, lines, summary["fps_video"])
     except Exception as exc:  # noqa: BLE001 - a failing clip is reported, the suite goes on
         res.error = f"{type(exc).__name__}: {exc}"
     res.seconds = time.perf_counter() - t0
@@ -240,6 +252,27 @@ def count_error(c: int, lo: int, hi: int) -> int:
     return c - hi if c > hi else (c - lo if c < lo else 0)
 
 
+def count_summary(results: list[Result], tracker: str, counts: str, count: str) -> dict:
+    """How a tracker's counts compare with the hand ranges (or true counts) of `results`:
+    {counts}_in_range, {counts}_within_1, {counts}_total, {count}_abs_error_sum,
+    {count}_worst_relative (error / the range's top) and, for synthetic clips where the
+    truth is exact, {count}_relative_error (sum of |errors| / sum of true counts)."""
+    errs = []
+    for r in results:
+        for (_, fwd, bwd), got in zip(r.hand, r.counts.get(tracker, []), strict=False):
+            for (lo, hi), c in zip((fwd, bwd), got, strict=True):
+                errs.append((count_error(c, lo, hi), hi))
+    if not errs:
+        return {}
+    e = np.array([abs(a) for a, _ in errs])
+    return {f"{counts}_in_range": int(np.sum(e == 0)),
+            f"{counts}_within_1": int(np.sum(e <= 1)),
+            f"{counts}_total": len(errs),
+            f"{count}_abs_error_sum": int(e.sum()),
+            f"{count}_worst_relative": float(max(abs(a) / max(hi, 1) for a, hi in errs)),
+            f"{count}_relative_error": float(e.sum() / max(sum(hi for _, hi in errs), 1))}
+
+
 def summarise(results: list[Result], trackers: list[str]) -> dict:
     out: dict[str, dict] = {}
     synth = [r for r in results if r.kind == "synthetic" and not r.error]
@@ -251,18 +284,8 @@ def summarise(results: list[Result], trackers: list[str]) -> dict:
             if vals:
                 s[f"{m}_mean"] = float(np.mean(vals))
                 s[f"{m}_worst"] = float(min(vals) if m in HIGHER_IS_BETTER else max(vals))
-        errs = []
-        for r in real:
-            for (_, fwd, bwd), got in zip(r.hand, r.counts.get(t, []), strict=False):
-                for (lo, hi), c in zip((fwd, bwd), got, strict=True):
-                    errs.append((count_error(c, lo, hi), hi))
-        if errs:
-            e = np.array([abs(a) for a, _ in errs])
-            s["counts_in_range"] = int(np.sum(e == 0))
-            s["counts_within_1"] = int(np.sum(e <= 1))
-            s["counts_total"] = len(errs)
-            s["count_abs_error_sum"] = int(e.sum())
-            s["count_worst_relative"] = float(max(abs(a) / max(hi, 1) for a, hi in errs))
+        s.update(count_summary(real, t, "counts", "count"))
+        s.update(count_summary(synth, t, "synth_counts", "synth_count"))
         out[t] = s
     recall = [r.detector["recall"] for r in synth if r.detector]
     if recall:
@@ -302,32 +325,47 @@ def print_table(results: list[Result], trackers: list[str], summary: dict) -> No
         print("det.recall: the share of the ground truth the raw detections match (IoU >= "
               "0.5, one to one),\nthe ceiling of a tracker's MOTA on them without coasting")
         print()
-    real = [r for r in results if r.kind == "real"]
-    if real:
-        head = "".join(f"{t:>14}" for t in trackers)
-        print(f"{'real clip':<44}{'line':>6}{'dir':>5}{'hand':>8}{head}")
-        for r in real:
-            if r.error:
-                print(f"{r.clip:<44}error: {r.error}")
-                continue
-            for k, (y, fwd, bwd) in enumerate(r.hand):
-                for d, (lo, hi) in enumerate((fwd, bwd)):
-                    if hi == 0 and all(r.counts[t][k][d] == 0 for t in trackers):
-                        continue
-                    hand = f"{lo}" if lo == hi else f"{lo}-{hi}"
-                    cells = ""
-                    for t in trackers:
-                        c = r.counts[t][k][d]
-                        e = count_error(c, lo, hi)
-                        cells += f"{c:>9d}" + (f" ({e:+d})" if e else "     ")
-                    print(f"{r.clip[:43]:<44}{y:>6.2f}{'fwd' if d == 0 else 'bwd':>5}"
-                          f"{hand:>8}{cells}")
-        for t in trackers:
-            s = summary.get(t, {})
-            if "counts_total" in s:
-                print(f"{t}: {s['counts_in_range']}/{s['counts_total']} counts in the hand "
-                      f"range, {s['counts_within_1']} within 1, sum of errors "
-                      f"{s['count_abs_error_sum']}, worst {100 * s['count_worst_relative']:.0f} %")
+    print_counts([r for r in synth if r.counts], trackers, summary, "synthetic clip",
+                 "true", "synth_counts", "synth_count")
+    print_counts([r for r in results if r.kind == "real"], trackers, summary, "real clip",
+                 "hand", "counts", "count")
+
+
+def print_counts(results: list[Result], trackers: list[str], summary: dict, kind: str,
+                 truth: str, counts: str, count: str) -> None:
+    """Per clip, line and direction the counts beside the hand range (or the true count);
+    rows where the truth and every count are 0 are left out."""
+    if not results:
+        return
+    head = "".join(f"{t:>14}" for t in trackers)
+    print(f"{kind:<44}{'line':>7}{'dir':>5}{truth:>8}{head}")
+    for r in results:
+        if r.error:
+            print(f"{r.clip:<44}error: {r.error}")
+            continue
+        for k, (label, fwd, bwd) in enumerate(r.hand):
+            for d, (lo, hi) in enumerate((fwd, bwd)):
+                if hi == 0 and all(r.counts[t][k][d] == 0 for t in trackers):
+                    continue
+                hand = f"{lo}" if lo == hi else f"{lo}-{hi}"
+                cells = ""
+                for t in trackers:
+                    c = r.counts[t][k][d]
+                    e = count_error(c, lo, hi)
+                    cells += f"{c:>9d}" + (f" ({e:+d})" if e else "     ")
+                print(f"{r.clip[:43]:<44}{label:>7}{'fwd' if d == 0 else 'bwd':>5}"
+                      f"{hand:>8}{cells}")
+    for t in trackers:
+        s = summary.get(t, {})
+        if f"{counts}_total" in s:
+            rel = s.get(f"{count}_relative_error")
+            print(f"{t}: {s[f'{counts}_in_range']}/{s[f'{counts}_total']} counts "
+                  f"{'exact' if truth == 'true' else 'in the hand range'}, "
+                  f"{s[f'{counts}_within_1']} within 1, sum of errors "
+                  f"{s[f'{count}_abs_error_sum']}"
+                  + (f" ({100 * rel:.0f} % of the true total)" if truth == "true" else "")
+                  + f", worst {100 * s[f'{count}_worst_relative']:.0f} %")
+    print()
 
 
 def _git_rev() -> str:
