@@ -173,6 +173,32 @@ def test_standing_vehicle_keeps_its_id():
     assert len(set().union(*(s.ids.tolist() for s in off))) == 2
 
 
+def test_vehicle_passing_a_standing_one_keeps_its_id():
+    """A vehicle stops at x = 180 and is lost while it stands (as above); a second one in
+    the same lane drives through its held box at 80 px/s and on. The passing vehicle keeps
+    its own track (before, the standing track, being older, took its detection and deleted
+    it as a duplicate), and the standing one is still its own track when it drives off."""
+    def stopped(t):
+        if t < 2:
+            return 100 + 80 * t - 20 * t * t
+        return None if t < 7 else 180 + 60 * (t - 7)
+    def boxes(t):
+        return [(x - 20, 170, 40, 20) for x in (stopped(t), 20 + 80 * (t - 2.5))
+                if x is not None and -20 < x < W + 20]
+    _, states = _run(boxes, 250)
+    def id_near(s, x):
+        """The id of the detected track at x (None when there is none)."""
+        k = np.flatnonzero((np.abs(s.boxes[:, 0] + s.boxes[:, 2] / 2 - x) < 8) & ~s.coasted)
+        return int(s.ids[k[0]]) if len(k) else None
+    passing = {id_near(s, 20 + 80 * ((n - 1) / FPS - 2.5)) for n, s in enumerate(states, 1)
+               if 3.5 <= (n - 1) / FPS <= 8}
+    assert len(passing) == 1 and None not in passing, passing
+    driving_off = {id_near(s, 180 + 60 * ((n - 1) / FPS - 7)) for n, s in enumerate(states, 1)
+                   if 7.5 <= (n - 1) / FPS <= 9.5}
+    assert len(driving_off) == 1 and driving_off != passing, (driving_off, passing)
+    assert id_near(states[24], 100 + 80 * 0.96 - 20 * 0.96**2) in driving_off
+
+
 def test_big_vehicle_entering_at_the_border_confirms_on_its_moving_edge():
     """A 300 px bus enters from the left edge at 150 px/s: its box's right edge moves at
     that speed while its centre moves at half of it; it is confirmed within 0.5 s."""

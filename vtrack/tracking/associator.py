@@ -135,6 +135,7 @@ def _resolve_shared(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray,
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Detections whose box holds the predicted centres of two or more confirmed tracks.
 
+    A standing track (lifecycle.py) among moving ones is being passed: it is left out.
     If those tracks' boxes largely overlap (the intersection covers over half of the smaller
     box), they follow one vehicle: the oldest track takes the detection and the younger ones
     are duplicates. Otherwise the detection is a merged blob of several vehicles: its
@@ -154,6 +155,15 @@ def _resolve_shared(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray,
     bi, pi = bi[alone], pi[alone]
     for d in np.flatnonzero(np.bincount(bi, minlength=len(boxes)) >= 2):
         held = conf[pi[bi == d]]
+        # A moving vehicle passes a standing one: the standing track neither takes the
+        # blob nor makes the moving one its duplicate.
+        still = tracks.standing[held]
+        if still.any() and not still.all():
+            passed = np.isin(mt, held[still]) & (md == d)
+            mt, md = mt[~passed], md[~passed]
+            held = held[~still]
+            if len(held) < 2:
+                continue
         taken = np.isin(mt, held) | (md == d)
         mt, md = mt[~taken], md[~taken]
         oldest = held[np.argmin(tracks.uid[held])]
