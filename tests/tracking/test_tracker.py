@@ -5,7 +5,10 @@ import numpy as np
 import pytest
 
 from vtrack.estimation.kalman import kf_update
+from vtrack.tracking.box_size import BoxSizeFilter
+from vtrack.tracking.lifecycle import Initiator
 from vtrack.tracking.measurements import difference_operator, finite_difference_measurement
+from vtrack.tracking.reporter import leaves_on_its_way
 from vtrack.tracking.tracker import Tracker, TrackerConfig
 
 W, H, FPS = 640, 360, 25.0
@@ -274,3 +277,23 @@ def test_detected_rows_show_the_whole_vehicle_detection_box():
     assert len(rows) > 30
     truth = np.array([growing((f - 1) / FPS)[0] for f in rows[:, 0]])
     assert np.allclose(rows[:, 2:6], truth, atol=1e-6)
+
+
+@pytest.mark.parametrize("moved,velocity,reported", [
+    ((400, 0), (200, 0), True),      # coasts out of the right edge the way it drove
+    ((400, 0), (130, 110), True),    # 40 degrees off its way: still on it
+    ((400, 0), (60, 200), False),    # a jump of its last boxes turned it down: not its way
+    ((10, 0), (200, 0), False),      # never went anywhere (a flicker at the border)
+])
+def test_coasted_tail_out_of_the_image_is_reported_only_on_the_vehicles_way(
+        moved, velocity, reported):
+    """A track that coasts out of the image has no detection to confirm its tail: the tail
+    is reported when the track's velocity points along its net displacement since its first
+    detection (within 45 degrees, over at least one box scale), as a vehicle lost before the
+    edge keeps going; junk that veered off (a merged or piecewise blob) is not."""
+    first = np.array([[100.0, 170.0, 40.0, 20.0]])
+    s0, Ps0 = BoxSizeFilter(0.01, 0.08, 1.0, 0.997, (0.0, 1.0)).initial(first[:, 2:], 0.05)
+    x0 = np.array([[120.0 + moved[0], 180.0 + moved[1], *velocity, 0.0, 0.0]])
+    table = Initiator().table(0.0, first, x0, np.eye(6)[None], s0, Ps0)
+    table.last_box = table.origin + np.array([*moved, *moved], dtype=float)
+    assert leaves_on_its_way(table, 0) is reported

@@ -8,8 +8,11 @@ detection that ends it confirms the prediction -- the predicted box and the upda
 overlap with IoU >= `ON_COURSE_IOU`, the MOT matching criterion: where they do not, the
 prediction had drifted off the vehicle (or onto another) and its rows would be false
 positives. A stretch that ends with the prediction leaving the image has no detection to
-confirm or refute it and is reported (a vehicle lost before a counting line and coasting
-over it still counts; dropping these rows too cost a count on a real clip). A track
+confirm or refute it; it is reported when the track leaves on its vehicle's way (its
+velocity along its net displacement since its first detection: a vehicle lost before a
+counting line and coasting over it still counts; dropping every such stretch cost a count
+on a real clip), and dropped when it veered off it (the last boxes of a merged or piecewise
+blob jumped, and the prediction follows the jump, not a vehicle). A track
 deleted after `max_coast_seconds` without a detection never got its vehicle back, so its
 trailing predictions are dropped.
 """
@@ -60,10 +63,9 @@ class RowReporter:
                 self.pending.pop(uid, None)
                 continue
             if not inside[i]:
-                if confirmed[i]:
-                    out.extend(self.pending.pop(uid, []))
-                else:
-                    self.pending.pop(uid, None)
+                tail = self.pending.pop(uid, [])
+                if confirmed[i] and leaves_on_its_way(tracks, i):
+                    out.extend(tail)
                 continue
             if hit[i] and not on_course[i] and uid in self.pending:
                 drop_coasted_tail(self.pending[uid])
@@ -74,6 +76,17 @@ class RowReporter:
                 back[:, 1] = tracks.id[i]
                 out.append(back)
         return np.vstack(out) if out else np.zeros((0, 7))
+
+
+def leaves_on_its_way(tracks: TrackTable, i: int) -> bool:
+    """Whether track i coasted out of the image the way its vehicle was going: its
+    velocity points within 45 degrees of its net displacement from its first to its last
+    detected box, a displacement of at least one box scale."""
+    edges = tracks.last_box[i] - tracks.origin[i]
+    way = (edges[:2] + edges[2:]) / 2
+    v = tracks.x[i, 2:4]
+    far = np.hypot(*way) >= tracks.scale[i]
+    return bool(far and way @ v >= np.cos(np.pi / 4) * np.hypot(*way) * np.hypot(*v))
 
 
 def drop_coasted_tail(rows: deque[np.ndarray]) -> None:
