@@ -187,16 +187,13 @@ def run_peer(name: str, detections: Path, fps: float, frames: int, out: Path) ->
     return path
 
 
-def count(tracks: Path, lines: list[list[float]], fps: float) -> list[list[int]]:
-    """[forward, backward] per line by the rule of `vtrack track` (analytics.lines)."""
-    from vtrack.analytics.lines import LineCounter
+def count(tracks: Path, lines: list[list[float]]) -> list[list[int]]:
+    """[forward, backward] per line of a MOT file's rows by the rule of `vtrack track`."""
+    from vtrack.analytics.lines import count_rows
 
-    counter = LineCounter(lines)
     rows = np.loadtxt(tracks, delimiter=",", ndmin=2) if tracks.stat().st_size else \
         np.zeros((0, 10))
-    for r in rows[np.lexsort((rows[:, 0], rows[:, 1]))]:
-        counter.add(int(r[1]), int(r[0]), r[0] / fps, r[2:4] + r[4:6] / 2)
-    return [[c["forward"], c["backward"]] for c in counter.counts()]
+    return count_rows(rows, lines)
 
 
 def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | None,
@@ -232,13 +229,13 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
         if synthetic:
             res.detector = detection_scores(read_mot(src / "gt.csv"),
                                             read_detections(out / "detections.csv"))
-            truth = count(src / "gt.csv", lines, summary["fps_video"])
+            truth = count(src / "gt.csv", lines)
             res.hand = [[label, [f, f], [b, b]] for (label, _), (f, b) in zip(named, truth)]
         for name, path in outputs.items():
             if synthetic:
                 s = evaluate(src / "gt.csv", path)
                 res.scores[name] = {k: s[k] for k in METRICS}
-            res.counts[name] = count(path, lines, summary["fps_video"])
+            res.counts[name] = count(path, lines)
     except Exception as exc:  # noqa: BLE001 - a failing clip is reported, the suite goes on
         res.error = f"{type(exc).__name__}: {exc}"
     res.seconds = time.perf_counter() - t0

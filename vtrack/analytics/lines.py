@@ -88,3 +88,14 @@ class LineCounter:
         """Per line: {"line": [...], "forward": n, "backward": n, "total": n}."""
         return [{"line": [float(v) for v in line], "forward": int(fw), "backward": int(bw),
                  "total": int(fw + bw)} for line, (fw, bw) in zip(self._lines, self._tally)]
+
+
+def count_rows(rows: np.ndarray, lines: Sequence[Sequence[float]]) -> list[list[int]]:
+    """[forward, backward] per line for MOT rows (frame, id, x, y, w, h, ...): every id's box
+    centres in frame order through one LineCounter, the rule `vtrack track` counts by (used
+    on a peer's tracks and on a synthetic clip's ground truth)."""
+    counter = LineCounter(lines)
+    rows = np.asarray(rows, dtype=float)
+    for r in rows[np.lexsort((rows[:, 0], rows[:, 1]))] if rows.size else ():
+        counter.add(int(r[1]), int(r[0]), 0.0, r[2:4] + r[4:6] / 2)
+    return [[c["forward"], c["backward"]] for c in counter.counts()]
