@@ -156,13 +156,15 @@ def _resolve_shared(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray,
     for d in np.flatnonzero(np.bincount(bi, minlength=len(boxes)) >= 2):
         held = conf[pi[bi == d]]
         # A moving vehicle passes a standing one: the standing track neither takes the
-        # blob nor makes the moving one its duplicate.
+        # blob nor makes the moving one its duplicate; one moving track takes it.
         still = tracks.standing[held]
         if still.any() and not still.all():
             passed = np.isin(mt, held[still]) & (md == d)
             mt, md = mt[~passed], md[~passed]
             held = held[~still]
-            if len(held) < 2:
+            if len(held) == 1:
+                if held[0] not in mt and d not in md:
+                    mt, md = np.append(mt, held[0]), np.append(md, d)
                 continue
         taken = np.isin(mt, held) | (md == d)
         mt, md = mt[~taken], md[~taken]
