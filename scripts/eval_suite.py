@@ -44,13 +44,6 @@ METRICS = ("mota", "idf1", "hota", "id_switches", "false_positives", "misses")
 HIGHER_IS_BETTER = {"mota", "idf1", "hota"}
 
 
-def synth_lines(width: int, height: int) -> list[tuple[str, list[float]]]:
-    """The counting lines of a synthetic clip: across the image at 0.6 of its height (as on
-    the real clips) and down it at half its width (the overhead and side roads run across)."""
-    return [("0.60 H", [0.0, 0.6 * height, width, 0.6 * height]),
-            ("0.50 W", [0.5 * width, 0.0, 0.5 * width, height])]
-
-
 @dataclass(frozen=True)
 class SynthClip:
     scene: str
@@ -208,7 +201,9 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
         if synthetic:
             src = render(clip, cache)
             video = src / "video.avi"
-            named = synth_lines(clip.width, clip.height)
+            from vtrack.sim.clip import scored_count_lines
+
+            named = scored_count_lines(clip.width, clip.height)
             lines = [line for _, line in named]
         else:
             video = VIDEOS / clip.file

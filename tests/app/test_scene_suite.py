@@ -22,7 +22,7 @@ from vtrack.analytics.regions import CountLine
 from vtrack.app.config import AppConfig
 from vtrack.app.track import TrackOptions, track_video
 from vtrack.evaluation.mot import evaluate, read_mot
-from vtrack.sim.clip import render_default
+from vtrack.sim.clip import render_default, scored_count_lines
 
 SHARED_VIDEOS = Path(__file__).resolve().parents[3] / "shared" / "videos"
 MARGIN = 0.05
@@ -72,7 +72,7 @@ COUNT_MARGIN = 1
 def test_synthetic_preset_holds_its_scores(tmp_path, scene, seed):
     src = _render(scene, seed, tmp_path / "clip")
     cfg = AppConfig()
-    lines = [[0.0, 0.6 * 360, 640.0, 0.6 * 360], [320.0, 0.0, 320.0, 360.0]]
+    lines = [line for _, line in scored_count_lines(640, 360)]
     cfg.count_lines = [CountLine(((x1, y1), (x2, y2))) for x1, y1, x2, y2 in lines]
     summary = track_video(src / "video.avi", tmp_path / "run", cfg, TrackOptions())
     scores = evaluate(src / "gt.csv", tmp_path / "run" / "tracks.csv")

@@ -376,3 +376,11 @@ def render_default(out_dir: str | os.PathLike, scene: str, frames: int = 300,
 
     render_preset(out_dir, scene, frames=frames, width=width, height=height, fps=fps,
                   seed=seed, nuisances=parse_nuisances("all"))
+
+
+def scored_count_lines(width: int, height: int) -> list[tuple[str, list[float]]]:
+    """The counting lines the scene suite and its regression slice score a synthetic clip
+    on, (label, [x1, y1, x2, y2]): across the image at 0.6 of its height (as on the real
+    clips) and down it at half its width (the overhead and side roads run across)."""
+    return [("0.60 H", [0.0, 0.6 * height, width, 0.6 * height]),
+            ("0.50 W", [0.5 * width, 0.0, 0.5 * width, height])]
