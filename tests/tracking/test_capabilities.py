@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from vtrack.boxes import paired_iou
 from vtrack.estimation.models import ConstantAcceleration
-from vtrack.tracking.measurements import border_cut, box_centre
+from vtrack.tracking.measurements import border_cut, box_centre, shrunk
 from vtrack.tracking.scale_field import ScaleField
 from vtrack.tracking.tracker import Tracker, TrackerConfig
 
@@ -55,6 +56,39 @@ def test_occluded_vehicle_keeps_its_size():
     assert min(widths) > 0.85 * 60
     ids = set().union(*(s.ids.tolist() for s in states))
     assert ids == {1}
+
+
+def test_a_centred_smaller_box_is_a_shrunk_vehicle_not_a_partial_view():
+    """Inside the predicted 200 x 100 box (centre 300, 200): a box inset at both ends of
+    both axes by about the same is the vehicle shrunk; one that keeps an end where
+    predicted is a partial view (an occluder hides the other end); one inset by under the
+    detection's std, or a small piece inside, is neither."""
+    pred, size, sigma = np.array([[300.0, 200.0]]), np.array([[200.0, 100.0]]), 3.0
+    def is_shrunk(box):
+        return bool(shrunk(pred, size, np.array([box], dtype=float), np.array([[sigma]]))[0])
+    assert is_shrunk([220, 165, 160, 70])          # 20 / 20 px in x, 15 / 15 px in y
+    assert is_shrunk([230, 160, 150, 75])          # 30 / 20 and 10 / 15: about centred
+    assert not is_shrunk([200, 165, 160, 70])      # the left end where predicted
+    assert not is_shrunk([260, 165, 130, 70])      # 60 / 10: one end hidden
+    assert not is_shrunk([202, 152, 196, 96])      # inset 2 px: noise
+    assert not is_shrunk([260, 180, 80, 40])       # a piece, not the vehicle
+
+
+def test_vehicle_receding_fast_shows_its_detected_box():
+    """A vehicle near a pole camera drives away at 600 px/s and loses 8 % of its size per
+    frame, faster than the size filter follows: once its detection lies centred inside the
+    predicted box by more than the detection noise (from frame 14 here), it is the vehicle
+    shrunk, and the rows show the detected box (IoU 1) instead of the lagging estimate (the
+    size gate took it for a partial view: IoU 0.56-0.61 in frames 14-15)."""
+    def box(t):
+        cy = 700 - 600 * t
+        h = 0.5 * (cy + 60)
+        return [(640 - 0.6 * h, cy - h / 2, 1.2 * h, h)]
+    _, states = _run(box, 24, width=1280, height=720)
+    rows = np.concatenate([s.rows for s in states])
+    rows = rows[rows[:, 0] >= 14]
+    truth = np.array([box((f - 1) / FPS)[0] for f in rows[:, 0]])
+    assert len(rows) == 11 and np.all(paired_iou(rows[:, 2:6], truth) > 0.99)
 
 
 @pytest.mark.parametrize("merged", [range(1, 4), range(21, 24)], ids=["born", "mid-track"])

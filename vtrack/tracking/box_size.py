@@ -23,6 +23,10 @@ outline noise, where it shows the whole vehicle:
   `size_shrink_seconds` for a smaller one (an occluder hides part of a vehicle for a
   while);
 - a side cut by the image border is a lower bound: smaller than predicted, it says nothing;
+- a vehicle receding faster than its size estimate shrinks (near a pole camera) is detected
+  inside the predicted box, about centred, at both ends of both axes; a partial view keeps
+  one end where predicted. Such a detection shows the whole vehicle: the size starts again
+  from it at once (measurements.shrunk);
 - the vehicle's own size: the median of its last OWN detections, each divided by the scene's
   scale field where it was seen (`own_size`), carried to where the vehicle is now. A
   detected side of that size, within the scatter of the vehicle's own detections, is the
@@ -89,12 +93,14 @@ class BoxSizeFilter:
         return np.exp(2 * s[:, :2]) * Ps[:, [0, 1], [0, 1]]
 
     def update(self, tracks: TrackTable, idx: np.ndarray, sizes: np.ndarray,
-               cut: np.ndarray, t: float, expected: np.ndarray, spread: np.ndarray
-               ) -> np.ndarray:
+               cut: np.ndarray, t: float, expected: np.ndarray, spread: np.ndarray,
+               shrunk: np.ndarray) -> np.ndarray:
         """Update the sizes of tracks `idx` with detected sizes (K, 2) at time t; cut (K, 2)
         marks sides on the image border; expected (K, 2) is the box size each track's
         vehicle has at its place (nan: not known) and spread (K, 2) the relative std of its
-        detected sides (`own_size`). Returns whole (K, 2): the sides that showed the whole
+        detected sides (`own_size`); shrunk (K, 2) marks the sides of a receding vehicle
+        whose detection lies centred inside the predicted box (measurements.shrunk): the
+        size starts again from it at once. Returns whole (K, 2): the sides that showed the whole
         vehicle (the module docstring)."""
         s, Ps = tracks.s[idx], tracks.Ps[idx]
         z = np.log(np.maximum(sizes, 1.0))
@@ -107,6 +113,7 @@ class BoxSizeFilter:
         # wrong).
         fits = ((z - np.log(expected)) ** 2
                 <= self.gate * (spread**2 + (1.0 / np.maximum(sizes, 1.0)) ** 2)) & ~cut
+        fits |= shrunk
         if whole.any():
             H = np.broadcast_to(np.eye(2, 4), (len(s), 2, 4))
             s, Ps, _ = kf_update(s, Ps, nu, H, var[:, :, None] * np.eye(2), mask=whole)

@@ -166,6 +166,23 @@ def box_centre(pred: np.ndarray, pos_var: np.ndarray, size: np.ndarray,
     return z, var
 
 
+def shrunk(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: np.ndarray
+           ) -> np.ndarray:
+    """(K,) whether a detected box lies inside the track's predicted box (centre pred, size
+    size) at all four ends, each further in than the detection's std sigma (K, 1), on each
+    axis the smaller inset at least a third of the larger and the box over half the
+    predicted size: the vehicle is smaller than predicted (one receding faster than its
+    estimated size shrinks). A view with an end hidden keeps the other end where
+    predicted, so its centre is off by half the missing length; this one is about centred
+    (off by under a quarter of it), on both axes, as perspective shrinks a vehicle; a far
+    smaller box inside is a piece (of a merge, of a vehicle), not the vehicle shrunk."""
+    lo = boxes[:, :2] - (pred - size / 2)
+    hi = pred + size / 2 - (boxes[:, :2] + boxes[:, 2:])
+    inset = np.minimum(lo, hi)
+    return np.all((inset > sigma) & (3 * inset > np.maximum(lo, hi)) & (lo + hi < size / 2),
+                  axis=1)
+
+
 def nested_centre(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """A detected box as a measurement (z, var) of a track's centre (K, 2 each).

@@ -26,7 +26,8 @@ from vtrack.tracking.box_size import BoxSizeFilter, anchored, own_size, remember
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
 from vtrack.tracking.lifecycle import Confirmer, Initiator, fate, record_hits
-from vtrack.tracking.measurements import border_cut, box_centre, measurement_model
+from vtrack.tracking.measurements import (border_cut, box_centre, measurement_model,
+                                          shrunk)
 from vtrack.tracking.reporter import ON_COURSE_IOU, ROW_COLUMNS, RowReporter
 from vtrack.tracking.scale_field import ScaleField
 from vtrack.tracking.table import TrackTable
@@ -220,14 +221,21 @@ class Tracker:
         edges_cut = border_cut(boxes, self.width, self.height)
         cut = edges_cut.any(axis=2)
         expected = spread = np.full((len(mt), 2), np.nan)
+        partial = anchored(tracks, mt, boxes, t)
         if cfg.own_size:
-            partial = anchored(tracks, mt, boxes, t)
             expected, spread = own_size(tracks.own[mt], self.field.k(tracks.x[mt, :2]))
             expected[partial] = np.nan
             remember_size(tracks, mt, boxes, self.field.k(boxes[:, :2] + boxes[:, 2:] / 2),
                           cut.any(axis=1) | partial)
+        # A vehicle receding (its box shrinking: the scene's perspective and the size
+        # filter's rates) faster than its size estimate follows: the size starts again
+        # from the detection.
+        sigma = detection_sigma(cfg, np.sqrt(size.prod(axis=1)))[:, None]
+        receding = np.all(self._size_rates(mt) < 0, axis=1)
+        smaller = ((shrunk(tracks.x[mt, :2], size, boxes, sigma) & receding & ~partial)[:, None]
+                   & ~cut)
         # A whole side is never a border-cut one (box_size.py), so `shows_whole` has no cut.
-        whole = self.sizes.update(tracks, mt, boxes[:, 2:], cut, t, expected, spread)
+        whole = self.sizes.update(tracks, mt, boxes[:, 2:], cut, t, expected, spread, smaller)
         shows_whole = whole.all(axis=1) & ~split
         self._learn_scale(mt[shows_whole], boxes[shows_whole])
         if split.any():
@@ -235,7 +243,6 @@ class Tracker:
             s_new, Ps_new = self.sizes.initial(boxes[split, 2:], cfg.init_size_rate_sigma)
             s_new[:, 2:], Ps_new[:, 2:, 2:] = tracks.s[k, 2:], tracks.Ps[k][:, 2:, 2:]
             tracks.s[k], tracks.Ps[k] = s_new, Ps_new
-        sigma = detection_sigma(cfg, np.sqrt(size.prod(axis=1)))[:, None]
         centers, var = box_centre(tracks.x[mt, :2], pos_var, size, size_var, boxes, whole,
                                   sigma, edges_cut)
         for hist, newest in ((tracks.hist_s, np.sqrt(var)), (tracks.hist_p, centers),
