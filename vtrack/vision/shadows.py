@@ -39,45 +39,63 @@ def textured_shadow(raw: np.ndarray, frame: np.ndarray, background: np.ndarray,
     background over the window and r their mean ratio (a shadow keeps s_f = r s_b; smooth
     paint over a grainy road loses it, a textured vehicle over a smooth road adds its own),
     and those on long thin dark lines that the background lacks (a vehicle's outline)."""
-    fg = np.where(raw == 255, np.uint8(255), np.uint8(0))
-    candidates = raw == SHADOW
-    if not candidates.any():
+    fg = cv2.threshold(raw, 254, 255, cv2.THRESH_BINARY)[1]  # MOG2's foreground (255)
+    candidates = cv2.compare(raw, SHADOW, cv2.CMP_EQ)
+    x, y, w, h = cv2.boundingRect(candidates)
+    if w == 0:
         return fg
     k = (window, window)
-    # Only the region around the shadow-labelled pixels is examined.
-    x, y, w, h = cv2.boundingRect(candidates.astype(np.uint8))
+    # Only the region around the shadow-labelled pixels is examined, and the tests are
+    # evaluated at those pixels alone (`at`: their flat indices in the region).
     m = window
     x0, y0 = max(x - m, 0), max(y - m, 0)
     x1, y1 = min(x + w + m, raw.shape[1]), min(y + h + m, raw.shape[0])
     sub = (slice(y0, y1), slice(x0, x1))
     candidates = candidates[sub]
-    f = cv2.cvtColor(frame[sub], cv2.COLOR_BGR2GRAY).astype(np.float32)
-    b = cv2.cvtColor(background[sub], cv2.COLOR_BGR2GRAY).astype(np.float32)
-    mf, mb = cv2.blur(f, k), cv2.blur(b, k)
-    sf = np.sqrt(np.maximum(cv2.blur(f * f, k) - mf * mf, 0.0))
-    sb = np.sqrt(np.maximum(cv2.blur(b * b, k) - mb * mb, 0.0))
+    at = np.flatnonzero(candidates > 0)
+    f = cv2.cvtColor(frame[sub], cv2.COLOR_BGR2GRAY)
+    b = cv2.cvtColor(background[sub], cv2.COLOR_BGR2GRAY)
+    mf, sf = _mean_std(f, k, at)
+    mb, sb = _mean_std(b, k, at)
     ratio = mf / (mb + 1.0)
     expected = ratio * sb
     differs = np.abs(sf - expected) > np.maximum(texture * expected, NOISE_GREY)
     # Blurred edges -- the ring around a vehicle's outline, the rim of a shadow -- mix two
     # brightness levels and look textured: only pixels with shadow-labelled neighbours all
     # round are judged (the closing fills a vehicle's holes again).
-    inner = cv2.erode(candidates.astype(np.uint8), np.ones(k, np.uint8)) > 0
+    inner = cv2.erode(candidates, np.ones(k, np.uint8)).take(at) > 0
     # Thin dark lines -- a vehicle's outline, window frames, the gap under a bumper -- one or
     # two pixels wide; a shadow has none of its own, only the road's dimmed: the 3x3
     # black-hat (closing minus image) of the frame above r times the background's.
     thin = np.ones((3, 3), np.uint8)
-    lines = (cv2.morphologyEx(f, cv2.MORPH_BLACKHAT, thin)
-             - ratio * cv2.morphologyEx(b, cv2.MORPH_BLACKHAT, thin)) > LINE_GREY
-    lines = _long(lines & candidates, LINE_PX)
-    lines = cv2.dilate(lines.astype(np.uint8), np.ones(k, np.uint8)) > 0  # its blurred sides
-    fg[sub][candidates & ((inner & differs) | lines)] = 255
+    dark = (cv2.morphologyEx(f, cv2.MORPH_BLACKHAT, thin).take(at).astype(np.float32)
+            - ratio * cv2.morphologyEx(b, cv2.MORPH_BLACKHAT, thin).take(at)) > LINE_GREY
+    keep = inner & differs
+    if dark.any():
+        lines = np.zeros(candidates.shape, np.uint8)
+        lines.flat[at] = dark
+        lines = cv2.dilate(_long(lines, LINE_PX), np.ones(k, np.uint8))  # its blurred sides
+        keep |= lines.take(at) > 0
+    fg[sub].flat[at[keep]] = 255
     return fg
 
 
+def _mean_std(grey: np.ndarray, k: tuple[int, int], at: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation of `grey` (uint8) over a k window, at flat indices `at`."""
+    mean = cv2.boxFilter(grey, cv2.CV_32F, k).take(at)
+    square = cv2.sqrBoxFilter(grey, cv2.CV_32F, k).take(at)
+    return mean, np.sqrt(np.maximum(square - mean * mean, 0.0))
+
+
 def _long(mask: np.ndarray, length: int) -> np.ndarray:
-    """The 8-connected pieces of `mask` at least `length` pixels long (bounding box side)."""
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
-    keep = np.maximum(stats[:, 2], stats[:, 3]) >= length
-    keep[0] = False
-    return keep[labels]
+    """The 8-connected pieces of `mask` (uint8) at least `length` pixels long (bounding box
+    side), as a uint8 mask; labelled within the box around the mask's pixels."""
+    x, y, w, h = cv2.boundingRect(mask)
+    box = (slice(y, y + h), slice(x, x + w))
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(mask[box], connectivity=8)
+    keep = (np.maximum(stats[:, 2], stats[:, 3]) >= length).astype(np.uint8)
+    keep[0] = 0
+    out = np.zeros_like(mask)
+    out[box] = keep.take(labels)
+    return out
