@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from test_motion_detector import RECTS, START, Scene, _match
-from vtrack.vision.detect import DetectorConfig, MotionDetector
+from vtrack.vision.detect import DetectorConfig, MotionDetector, median_image
 
 
 def _shaken(scene: Scene, n: int, rng: np.random.Generator) -> tuple[np.ndarray, tuple]:
@@ -55,6 +55,16 @@ def test_background_from_the_video_detects_vehicles_in_the_first_frame():
     assert found[0] == 2 and min(found) == 2
     cold = MotionDetector(DetectorConfig(), 320, 240)
     assert sum(len(cold.detect(f)) for f in frames[:10]) == 0   # warm-up: nothing yet
+
+
+def test_median_image_is_numpys_rounded_down():
+    """The background's median of uint8 samples is np.median's rounded down, for odd and
+    even counts."""
+    rng = np.random.default_rng(1)
+    for n in (3, 4, 25):
+        images = list(rng.integers(0, 256, (n, 24, 32, 3), dtype=np.uint8))
+        expected = np.median(np.stack(images), axis=0).astype(np.uint8)
+        assert np.array_equal(median_image(images), expected), n
 
 
 def test_blob_holding_two_predicted_vehicles_is_split():
