@@ -75,7 +75,8 @@ class TrackTable:
         the current frame's (p' = A p + b). Positions map by m; velocities, accelerations
         and the covariance by A (P' = T P T', T = I3 (x) A); sizes scale by sqrt|det A|."""
         A, b = m[:, :2], m[:, 2]
-        T = np.kron(np.eye(3), A)
+        T = np.zeros((6, 6))
+        T[0:2, 0:2] = T[2:4, 2:4] = T[4:6, 4:6] = A
         self.x = self.x @ T.T
         self.x[:, :2] += b
         self.P = T @ self.P @ T.T
