@@ -5,10 +5,20 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
+import platform
 import struct
 from pathlib import Path
 
 import pytest
+
+# The golden outputs (tests/golden) are compared bit for bit, and OpenBLAS picks its kernels
+# by CPU, with other last bits on each: they are recorded with its Haswell kernels (AVX2,
+# every x86-64 CPU of the last decade), which the tests therefore use on any x86-64 machine
+# (an AVX-512 CPU would take SkylakeX or Zen kernels). Set before NumPy loads OpenBLAS;
+# test workers and the processes the tests start inherit it.
+if platform.machine() in ("x86_64", "AMD64"):
+    os.environ["OPENBLAS_CORETYPE"] = "Haswell"
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_VIDEOS = ROOT.parent / "shared" / "videos"

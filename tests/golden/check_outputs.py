@@ -4,7 +4,9 @@ outputs recorded before the estimation refactor (tests/golden/experiments_full, 
 tests/golden/record_golden.py). Prints one line per experiment; exit 1 if anything recorded
 changed (new keys are allowed). Takes ~2 minutes; the test suite checks shrunk versions.
 
-    .venv/bin/python tests/golden/check_outputs.py [NAME ...]
+    OPENBLAS_CORETYPE=Haswell .venv/bin/python tests/golden/check_outputs.py [NAME ...]
+
+(the outputs are recorded with OpenBLAS's Haswell kernels, see record_golden.py)
 """
 
 from __future__ import annotations

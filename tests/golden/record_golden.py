@@ -5,7 +5,14 @@ Run once against the code BEFORE a refactor (the files in this folder were recor
 commit a7d84d5, before the filter registry, the hooks and the Monte Carlo harness):
 
     git archive a7d84d5 | tar -x -C /tmp/base
-    PYTHONPATH=/tmp/base .venv/bin/python tests/golden/record_golden.py
+    cd /tmp/base && OPENBLAS_CORETYPE=Haswell PYTHONPATH=/tmp/base \
+        /path/to/vtrack/.venv/bin/python /path/to/vtrack/tests/golden/record_golden.py
+
+OpenBLAS's kernels differ in the last bits from CPU to CPU, so the recording names its
+kernels: Haswell (AVX2), which tests/conftest.py selects for the tests on every x86-64
+machine. (Recorded first with its SkylakeX kernels; re-recorded from a7d84d5 with Haswell's
+once the machines changed, after checking that a7d84d5 with SkylakeX's reproduces the first
+recording byte for byte.)
 
 It writes, next to this file:
 * filter/<input>.csv: measurement logs (made here once, deterministic) and filter/expected.json:
