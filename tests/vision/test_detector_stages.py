@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 
 from test_motion_detector import RECTS, START, Scene, _match
-from vtrack.vision.detect import DetectorConfig, MotionDetector, median_image
+from vtrack.vision.background import median_image
+from vtrack.vision.detect import DetectorConfig, MotionDetector
 
 
 def _shaken(scene: Scene, n: int, rng: np.random.Generator) -> tuple[np.ndarray, tuple]:
