@@ -9,7 +9,7 @@ import pytest
 from record_golden import assert_unchanged
 from vtrack.cli import main
 from vtrack.estimation.bounds import paired_difference
-from vtrack.estimation.models import Bearings
+from vtrack.estimation.models import Bearings, WienerVelocity
 from vtrack.experiments import _bearings_scenario as scn
 from vtrack.experiments.ankf import scenarios
 
@@ -60,7 +60,7 @@ def test_batched_adaptive_filters_equal_the_core_filters(seeds, kind, opts, case
     few = seeds[:3]
     truth = scn.turning_truth(few)
     Z = scn.measure(truth, scenario.sensors, scenario.sigma_true, few)
-    motion = scn.CachedWienerVelocity(scenario.q_filter)
+    motion = WienerVelocity(scenario.q_filter)
     meas = Bearings(scenario.sensors, scenario.sigma_filter)
     x0s = np.zeros((3, 4))
     batched = scn.run_filter(kind, motion, meas, Z, x0s, scn.P0, **opts)

@@ -14,7 +14,7 @@ from scipy.linalg import expm
 from record_golden import assert_unchanged
 from vtrack.cli import main
 from vtrack.estimation.bounds import chi2_band, paired_difference
-from vtrack.estimation.models import Bearings
+from vtrack.estimation.models import Bearings, WienerVelocity
 from vtrack.experiments import _bearings_scenario as scn
 from vtrack.experiments.bearings import KINDS
 
@@ -80,7 +80,7 @@ def test_adding_a_sensor_keeps_the_other_sensors_noise(two, three):
 
 
 def test_batched_ekf_equals_the_core_ekf(two):
-    motion = scn.CachedWienerVelocity(scn.Q_TRUE)
+    motion = WienerVelocity(scn.Q_TRUE)
     meas = Bearings(scn.SENSORS_DEDUCED, scn.SIGMA_W)
     per_run = scn.run_filter("ekf", motion, meas, two.Z[:4], two.x0s[:4], scn.P0, batch=False)
     batched = two.runs["ekf"]

@@ -49,19 +49,38 @@ class MotionModel:
 
 
 class LinearMotion(MotionModel):
-    """Linear-Gaussian motion x_k = Phi(dt) x_{k-1} + w built per axis: Phi = kron(Phi_axis, I_d)."""
+    """Linear-Gaussian motion x_k = Phi(dt) x_{k-1} + w built per axis: Phi = kron(Phi_axis, I_d).
+
+    Phi(dt) and Q(dt) / q are kept per dt, read-only (a video's frame spacings, a Monte Carlo
+    loop's step, take a few values; at most DISCRETE_KEPT are kept)."""
 
     linear = True
+    DISCRETE_KEPT = 32
 
     def __init__(self, q: float, dim: int = 2) -> None:
         self.q = float(q)
         self.dim = dim
+        self._discrete: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     def _axis(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
+    def _kept(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """(Phi(dt), Q(dt) / q), read-only."""
+        kept = self._discrete.get(dt)
+        if kept is None:
+            eye = np.eye(self.dim)
+            kept = tuple(np.kron(a, eye) for a in self._axis(dt))
+            for a in kept:
+                a.flags.writeable = False
+            if len(self._discrete) >= self.DISCRETE_KEPT:
+                self._discrete.clear()
+            self._discrete[dt] = kept
+        return kept
+
     def transition(self, dt: float) -> np.ndarray:
-        return np.kron(self._axis(dt)[0], np.eye(self.dim))
+        """Phi(dt), read-only."""
+        return self._kept(dt)[0]
 
     def f(self, x: np.ndarray, dt: float, u: np.ndarray | None = None) -> np.ndarray:
         return np.asarray(x, dtype=float) @ self.transition(dt).T
@@ -70,7 +89,7 @@ class LinearMotion(MotionModel):
         return self.transition(dt)
 
     def Q(self, dt: float) -> np.ndarray:
-        return self.q * np.kron(self._axis(dt)[1], np.eye(self.dim))
+        return self.q * self._kept(dt)[1]
 
 
 class WienerVelocity(LinearMotion):

@@ -50,27 +50,6 @@ TURN_RATE = (np.pi / 2) / 51 / DT                               # quarter turn p
 TURN_RATE_NOISE = 0.01                                          # per-step N(0,1) scale
 
 
-class CachedWienerVelocity(WienerVelocity):
-    """The core WienerVelocity model with Phi(dt) and Q(dt) memoised (same numbers; the Monte
-    Carlo loops ask for them ~10^5 times with one dt)."""
-
-    def __init__(self, q: float) -> None:
-        super().__init__(q)
-        self._cache: dict[tuple[str, float], np.ndarray] = {}
-
-    def transition(self, dt: float) -> np.ndarray:
-        key = ("F", float(dt))
-        if key not in self._cache:
-            self._cache[key] = super().transition(dt)
-        return self._cache[key]
-
-    def Q(self, dt: float) -> np.ndarray:
-        key = ("Q", float(dt))
-        if key not in self._cache:
-            self._cache[key] = super().Q(dt)
-        return self._cache[key]
-
-
 # ------------------------------------------------------------------------- randomness
 
 
@@ -476,7 +455,7 @@ def simulate(scenario: Scenario, seeds: list[int],
     Z = measure(truth, scenario.sensors, scenario.sigma_true, seeds)
     bound_var = pcrlb_variance(truth, scenario.sensors, scenario.sigma_true, scenario.q_true,
                                scenario.dt, scenario.prior_cov)
-    motion = CachedWienerVelocity(scenario.q_filter)
+    motion = WienerVelocity(scenario.q_filter)
     meas = Bearings(scenario.sensors, scenario.sigma_filter)
     runs = {kind: run_filter(kind, motion, meas, Z, x0s, scenario.prior_cov, dt=scenario.dt,
                              **opts)

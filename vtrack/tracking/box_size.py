@@ -39,8 +39,6 @@ outline noise, where it shows the whole vehicle:
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 from scipy.special import ndtri
 from vtrack.estimation.kalman import kf_predict, kf_update
@@ -56,7 +54,7 @@ class BoxSizeFilter:
 
     def __init__(self, size_psd: float, size_sigma: float, rate_seconds: float,
                  gate_probability: float, reset_seconds: tuple[float, float]) -> None:
-        self.psd = size_psd
+        self.model = WienerVelocity(size_psd)
         self.sigma = size_sigma
         self.tau = rate_seconds
         self.gate = float(ndtri((1 + gate_probability) / 2)) ** 2   # chi-square, 1 dof
@@ -86,7 +84,9 @@ class BoxSizeFilter:
             return s, Ps
         s = s.copy()
         s[:, :2] += (log_rate * dt)[:, None]
-        return kf_predict(s, Ps, *_motion(self.psd, self.tau, dt))
+        F = self.model.transition(dt).copy()
+        F[[2, 3], [2, 3]] = np.exp(-dt / self.tau)
+        return kf_predict(s, Ps, F, self.model.Q(dt))
 
     def px_var(self, s: np.ndarray, Ps: np.ndarray) -> np.ndarray:
         """(K, 2) variance of the box sides in px^2 (first order: (w sigma_ln w)^2)."""
@@ -100,8 +100,8 @@ class BoxSizeFilter:
         vehicle has at its place (nan: not known) and spread (K, 2) the relative std of its
         detected sides (`own_size`); shrunk (K, 2) marks the sides of a receding vehicle
         whose detection lies centred inside the predicted box (measurements.shrunk): the
-        size starts again from it at once. Returns whole (K, 2): the sides that showed the whole
-        vehicle (the module docstring)."""
+        size starts again from it at once. Returns whole (K, 2): the sides that showed the
+        whole vehicle (the module docstring)."""
         s, Ps = tracks.s[idx], tracks.Ps[idx]
         z = np.log(np.maximum(sizes, 1.0))
         var = self._var(sizes)
@@ -136,19 +136,6 @@ class BoxSizeFilter:
         tracks.mismatch_t[idx] = np.where(rejected & ~reset, start, np.nan)
         tracks.mismatch_sign[idx] = np.where(rejected & ~reset, sign, 0.0)
         return whole | (reset & fits)
-
-
-@lru_cache(maxsize=32)
-def _motion(psd: float, tau: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """F and Q over dt of the size state: Wiener velocity of density psd with rates
-    mean-reverting at time constant tau, read-only; cached, as a video's frame spacings
-    take a few values."""
-    model = WienerVelocity(psd)
-    F = model.transition(dt)
-    F[[2, 3], [2, 3]] = np.exp(-dt / tau)
-    Q = model.Q(dt)
-    F.flags.writeable = Q.flags.writeable = False
-    return F, Q
 
 
 def own_size(own: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

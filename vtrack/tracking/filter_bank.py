@@ -17,7 +17,6 @@ the result back, so there is one copy of every track's state.
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -35,6 +34,7 @@ class FilterBank:
 
     def __init__(self, cfg: TrackerConfig) -> None:
         self.cfg = cfg
+        self.model = ConstantAcceleration(1.0)   # unit jerk density; scaled per track
         self.kind = cfg.filter
         # Adaptive kinds: one core filter object per track (by uid) on the position rows.
         self._objects: dict[int, GaussianFilter] = {}
@@ -86,8 +86,8 @@ class FilterBank:
             return
         if self.kind == "kf":
             q = self.cfg.jerk * tracks.scale**2
-            F, Q = _unit_motion(dt)
-            tracks.x, tracks.P = kf_predict(tracks.x, tracks.P, F, q[:, None, None] * Q)
+            tracks.x, tracks.P = kf_predict(tracks.x, tracks.P, self.model.transition(dt),
+                                            q[:, None, None] * self.model.Q(dt))
             return
         for i in range(len(tracks)):
             self._step(tracks, i, lambda f: f.predict(dt))
@@ -113,13 +113,3 @@ class FilterBank:
             innov = self._step(tracks, i, lambda f, zi=zi: f.update(zi))
             nis[j] = float(innov.nis) if innov is not None else np.nan
         return nis
-
-
-@lru_cache(maxsize=32)
-def _unit_motion(dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """F and Q over dt of the constant-acceleration model of unit jerk density (scaled per
-    track), read-only; cached, as a video's frame spacings take a few values."""
-    model = ConstantAcceleration(1.0)
-    F, Q = model.transition(dt), model.Q(dt)
-    F.flags.writeable = Q.flags.writeable = False
-    return F, Q
