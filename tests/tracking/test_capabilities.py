@@ -12,8 +12,10 @@ from scipy.stats import chi2
 
 from vtrack.boxes import paired_iou
 from vtrack.estimation.models import ConstantAcceleration
+from vtrack.tracking.box_size import anchored
 from vtrack.tracking.measurements import border_cut, box_centre, shrunk
 from vtrack.tracking.scale_field import ScaleField
+from vtrack.tracking.table import TrackTable
 from vtrack.tracking.tracker import Tracker, TrackerConfig
 
 W, H, FPS = 640, 360, 25.0
@@ -89,6 +91,41 @@ def test_vehicle_receding_fast_shows_its_detected_box():
     rows = rows[rows[:, 0] >= 14]
     truth = np.array([box((f - 1) / FPS)[0] for f in rows[:, 0]])
     assert len(rows) == 11 and np.all(paired_iou(rows[:, 2:6], truth) > 0.99)
+
+
+def _one_track(velocity, velocity_std, last_box, t_last):
+    """A track table holding one track moving at `velocity` (px/s), last detected at
+    t_last with edges `last_box` (x0, y0, x1, y1)."""
+    tracks = TrackTable(**{name: np.zeros((1,) + column.shape[1:], column.dtype)
+                           for name, column in vars(TrackTable.empty()).items()})
+    tracks.x[0, 2:4] = velocity
+    tracks.P[0] = np.diag([4.0, 4.0, *np.square(velocity_std), 100.0, 100.0])
+    tracks.last_box[0], tracks.hist_t[0] = last_box, t_last
+    return tracks
+
+
+def test_an_edge_stays_put_at_an_occluder_not_on_an_axis_without_motion():
+    """`anchored`: a detection with an edge that stayed put where the whole vehicle's edge
+    would have moved is a partial view. A car driving right at 200 px/s (std 10) behind a
+    pole: the left edge moves 8 px in a frame, the right edge stays at the pole -- anchored.
+    A truck driving across a side view whose vertical velocity estimate is 60 px/s of noise
+    (std 50): its top and bottom edges stay put, as they should -- not anchored (the old
+    rule took any velocity for motion and held the truck's box for a partial view). A car
+    approaching a pole camera, 100 px/s down and 200 px/s taller: its top edge stands
+    still while it grows -- not anchored."""
+    dt = 1 / FPS
+    behind_pole = _one_track([200.0, 0.0], [10.0, 10.0], [100, 170, 160, 190], 0.0)
+    box = np.array([[108.0, 170.0, 52.0, 20.0]])        # x0 +8, x1 at the pole
+    assert anchored(behind_pole, np.array([0]), box, dt, np.zeros((1, 2)))[0]
+    across = _one_track([200.0, 60.0], [50.0, 50.0], [100, 100, 400, 200], 0.0)
+    box = np.array([[108.0, 100.0, 300.0, 100.0]])      # x moves 8 px, y edges still
+    assert not anchored(across, np.array([0]), box, dt, np.zeros((1, 2)))[0]
+    approaching = _one_track([0.0, 100.0], [10.0, 10.0], [300, 100, 360, 160], 0.0)
+    box = np.array([[298.0, 100.0, 64.0, 68.0]])        # top still, bottom +8 px
+    rates = np.array([[50.0, 200.0]])                   # d(w, h)/dt, px/s
+    assert not anchored(approaching, np.array([0]), box, dt, rates)[0]
+    # ... which the same box without the growth would be: the test tells them apart.
+    assert anchored(approaching, np.array([0]), box, dt, np.zeros((1, 2)))[0]
 
 
 @pytest.mark.parametrize("merged", [range(1, 4), range(21, 24)], ids=["born", "mid-track"])

@@ -46,7 +46,8 @@ from vtrack.estimation.models import WienerVelocity
 from vtrack.tracking.table import TrackTable
 
 OWN_SPREAD = 0.5    # ln spread of a vehicle's detected sides beyond which its size is unknown
-ANCHOR_SHARE = 0.3  # an edge moving less than this share of the vehicle's travel stays put
+ANCHOR_SHARE = 0.3  # an edge moving less than this share of its expected motion stays put
+ANCHOR_SIGMAS = 3.0  # a velocity this many standard deviations from zero is motion
 
 
 class BoxSizeFilter:
@@ -161,12 +162,25 @@ def remember_size(tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray, k: np.
     own[idx, 0] = np.log(np.maximum(boxes[:, 2:], 1.0)) - np.log(k)[:, None]
 
 
-def anchored(tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray, t: float) -> np.ndarray:
+def anchored(tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray, t: float,
+             size_rates: np.ndarray) -> np.ndarray:
     """(K,) True where a detection (K, 4) of tracks idx at time t has an edge that stayed
-    put since the track's last detection while the vehicle moved along that axis: the edge
-    of a static occluder, so the detection shows part of the vehicle."""
-    travel = np.abs(tracks.x[idx, 2:4]) * (t - tracks.hist_t[idx, 0])[:, None]
+    put since the track's last detection where the whole vehicle's edge would have moved:
+    the edge of a static occluder, so the detection shows part of the vehicle.
+
+    A whole vehicle's near and far edges move by v dt -/+ (dw/dt) dt / 2 on each axis
+    (size_rates (K, 2), px/s: perspective growth and the size filter's rates), so the far
+    edge of a vehicle approaching a pole camera can stand still while it grows. An edge
+    counts as put only on an axis the vehicle is known to move along (its velocity more
+    than ANCHOR_SIGMAS standard deviations from zero: a truck driving across a side view
+    has a vertical velocity estimate of tens of px/s, all noise) and against more than a
+    pixel of expected motion."""
+    dt = (t - tracks.hist_t[idx, 0])[:, None]
+    v = tracks.x[idx, 2:4]
+    moving = np.abs(v) > ANCHOR_SIGMAS * np.sqrt(tracks.P[idx][:, [2, 3], [2, 3]])
+    shift, grow = v * dt, size_rates * dt / 2
+    expected = np.where(np.hstack([moving, moving]),
+                        np.abs(np.hstack([shift - grow, shift + grow])), 0.0)
     edges = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
     moved = np.abs(edges - tracks.last_box[idx])
-    still = np.minimum(moved[:, :2], moved[:, 2:]) < ANCHOR_SHARE * travel
-    return ((travel > 1.0) & still).any(axis=1)
+    return ((expected > 1.0) & (moved < ANCHOR_SHARE * expected)).any(axis=1)

@@ -221,7 +221,7 @@ class Tracker:
         edges_cut = border_cut(boxes, self.width, self.height)
         cut = edges_cut.any(axis=2)
         expected = spread = np.full((len(mt), 2), np.nan)
-        partial = anchored(tracks, mt, boxes, t)
+        partial = anchored(tracks, mt, boxes, t, self._size_rates(mt))
         if cfg.own_size:
             expected, spread = own_size(tracks.own[mt], self.field.k(tracks.x[mt, :2]))
             expected[partial] = np.nan
