@@ -29,6 +29,8 @@ ABLATIONS = {
                            "[detector]\ninit_background_seconds = 0.0\n"),
     "no-shadows": ("shadow removal (MOG2 shadow label off, as before)",
                    "[detector]\ndetect_shadows = false\n"),
+    "no-shift-tolerance": ("foreground a small shift of the background explains dropped",
+                           "[detector]\nshift_tolerance = 0.0\n"),
     "no-split": ("merged blobs divided among predicted boxes",
                  "[detector]\nsplit_merged = false\n"),
     "no-standing": ("standing vehicles held in place", "[tracker]\nstand_speed = 0.0\n"),

@@ -55,6 +55,19 @@ class StageTimes:
         return timed
 
 
+class _TimedStage:
+    """A detector stage object whose calls are timed; its attributes read through."""
+
+    def __init__(self, times: StageTimes, name: str, stage: Any) -> None:
+        self._stage, self._call = stage, times.wrap(name, stage)
+
+    def __call__(self, *args: Any) -> Any:
+        return self._call(*args)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stage, name)
+
+
 def stage_costs(video: Path, cfg: config.AppConfig, frames: int) -> tuple[StageTimes, int]:
     """Run detector and tracker in process with every stage timed."""
     times = StageTimes()
@@ -67,11 +80,13 @@ def stage_costs(video: Path, cfg: config.AppConfig, frames: int) -> tuple[StageT
     times.seconds["background estimate (2nd read)"] += time.perf_counter() - t0
     det.prepare = times.wrap("prepare (downscale, blur)", det.prepare)
     if det.stabiliser is not None:
-        det.stabiliser = times.wrap("stabilise", det.stabiliser)
+        det.stabiliser = _TimedStage(times, "stabilise", det.stabiliser)
     if det.gain is not None:
         det.gain = times.wrap("gain compensation", det.gain)
     det.background.apply = times.wrap("MOG2", det.background.apply)
     det.clean = times.wrap("morphology", det.clean)
+    if det.shifted is not None:
+        det.shifted = times.wrap("shift tolerance", det.shifted)
     if det.motion is not None:
         det.motion = times.wrap("motion map", det.motion)
     for name, stage in (("shadows", "textured_shadow"), ("blobs", "find_blobs")):

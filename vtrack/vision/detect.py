@@ -1,9 +1,9 @@
 """Moving-vehicle detector: one interface (`MotionDetector.detect`) over named stages:
 prepare (prepare.py) -> stabilise (stabilise.py) -> background (background.py) -> shadows
-(shadows.py) -> blobs and split (blobs.py, split.py). `detect` is `locate(segment(image))`:
-`segment` runs the image stages, which need no track state, and returns what they found
-(`Foreground`); `locate` runs the blob stages on it, which divide merged blobs among the
-tracker's predictions.
+(shadows.py) -> shift tolerance (jitter.py) -> blobs and split (blobs.py, split.py).
+`detect` is `locate(segment(image))`: `segment` runs the image stages, which need no track
+state, and returns what they found (`Foreground`); `locate` runs the blob stages on it,
+which divide merged blobs among the tracker's predictions.
 
 Per frame, at the detection resolution (frames wider than `detect_width` are halved until
 they fit: MOG2 costs ~10x decoding at full HD resolution):
@@ -16,6 +16,9 @@ they fit: MOG2 costs ~10x decoding at full HD resolution):
    levels; OpenCV's floor of 4 lets H.264 texture refreshes light up foliage), learning
    fast during the warm-up and at 1 / history afterwards (see `Mog2Background.learning_rate`);
 4. MOG2's shadow label (127) is dropped (`shadow_threshold`), then the ROI mask is applied;
+   on a camera that sways, foreground that a shift of the background by up to
+   `shift_radius` px explains (an edge lit up by what the stabiliser leaves of the sway) is
+   dropped (jitter.py);
 5. morphology: opening (3x3) removes speckle and leaf flicker, then closing (7x7) fills a
    vehicle's holes (windows, a roof the colour of the road) and joins its fragments;
 6. outer contours, kept when their area and fill ratio (area / box area: foliage blobs are
@@ -43,6 +46,7 @@ import numpy as np
 
 from vtrack.vision.background import Mog2Background, median_image
 from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi
+from vtrack.vision.jitter import ShiftTolerance
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
 from vtrack.vision.shadows import drop_shadows, textured_shadow
 from vtrack.vision.split import holders, split_blob
@@ -75,6 +79,12 @@ class DetectorConfig:
                                     "0: drop every shadow-labelled pixel")
     shadow_ratio: float = _f(0.5, "MOG2 shadow threshold tau: darker than this is not shadow")
     shadow_threshold: int = _f(200, "mask values below this (MOG2 shadows are 127) are dropped")
+    shift_tolerance: float = _f(8.0, "once the camera has moved (stabilise), drop "
+                                      "foreground pixels within this many grey levels, in "
+                                      "every channel, of a blend of two adjacent background "
+                                      "pixels within `shift_radius`: edges lit up by the "
+                                      "sway the stabiliser leaves; 0: off (jitter.py)")
+    shift_radius: int = _f(2, "how far (detection pixels) that shift may reach")
     detect_width: int = _f(640, "frames wider than this are halved (INTER_AREA) until they "
                                 "fit before detection; smaller frames are never shrunk")
     blur: int = _f(3, "Gaussian blur kernel before MOG2 (odd; 0 or 1: off)")
@@ -117,6 +127,8 @@ class DetectorConfig:
             "shadow_ratio": 0 < self.shadow_ratio < 1,
             "shadow_texture": self.shadow_texture >= 0,
             "shadow_threshold": 1 <= self.shadow_threshold <= 255,
+            "shift_tolerance": 0 <= self.shift_tolerance <= 255,
+            "shift_radius": self.shift_radius >= 1,
             "detect_width": self.detect_width >= 16,
             "blur": self.blur >= 0,
             "open_kernel": self.open_kernel >= 0,
@@ -184,6 +196,8 @@ class MotionDetector:
                                          cfg.learning_rate, cfg.warmup_frames)
         roi = load_roi(cfg.roi_mask, size) if cfg.roi_mask else None
         self.clean = MaskCleaner(roi, cfg.open_kernel, cfg.close_kernel)
+        self.shifted = (ShiftTolerance(cfg.shift_tolerance, cfg.shift_radius)
+                        if cfg.shift_tolerance > 0 else None)
         self.motion = MotionMap() if cfg.min_motion > 0 else None
         self.stabiliser = (Stabiliser(*size, probe_frames=max(1, round(2.0 * fps)),
                                       still_px=cfg.stabilise_still_px)
@@ -220,8 +234,9 @@ class MotionDetector:
         return self.locate(self.segment(image), priors)
 
     def segment(self, image: np.ndarray) -> Foreground:
-        """The image stages (prepare, stabilise, gain, MOG2, shadows, morphology, motion
-        map) of the next frame, in frame order; they need no track state."""
+        """The image stages (prepare, stabilise, gain, MOG2, shadows, shift tolerance,
+        morphology, motion map) of the next frame, in frame order; they need no track
+        state."""
         cfg = self.cfg
         small = self.prepare(image)
         motion = IDENTITY
@@ -237,6 +252,8 @@ class MotionDetector:
             fg = textured_shadow(raw, small, self.background.image(), cfg.shadow_texture)
         else:
             fg = drop_shadows(raw, cfg.shadow_threshold)
+        if self.shifted is not None and self.stabiliser is not None and self.stabiliser.moved:
+            fg = self.shifted(fg, small, self.background.image())
         self.foreground = self.clean(fg)
         moving = None
         if self.motion is not None:

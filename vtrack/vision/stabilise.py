@@ -78,6 +78,11 @@ class Stabiliser:
         self._ref: np.ndarray | None = None
         self._pts: np.ndarray | None = None
 
+    @property
+    def moved(self) -> bool:
+        """Whether the camera has moved by more than `still_px` so far."""
+        return self.max_shift > self.still_px
+
     def _grey(self, small: np.ndarray) -> np.ndarray:
         g = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)
         return g if self.s == 1 else cv2.resize(g, self.est_size, interpolation=cv2.INTER_AREA)
