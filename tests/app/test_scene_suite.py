@@ -31,14 +31,17 @@ FRAMES = 200
 # scene, seed: (MOTA, IDF1) measured on this slice (200 frames, 640x360, default config),
 # on the commit that keeps a passing vehicle's track from a standing one (associator.py) and
 # reports a coasted tail out of the image only on its vehicle's way (reporter.py); before:
-# overhead 0.970 / 0.898, mast 0.039 / 0.255, side -0.474 / 0.254, junction the same.
+# overhead 0.970 / 0.898, mast 0.039 / 0.255, side -0.474 / 0.254, junction the same. mast
+# and side raised on the commit of the detector's shift tolerance (jitter.py; before it
+# 0.039 / 0.256 and -0.438 / 0.270 -- -0.465 / 0.256 on that commit's parent); junction
+# measured there at -0.046 / 0.397 and kept at its floor.
 # The perspective scenes are hard for background subtraction (far vehicles of a few
 # pixels, parked cars, shadows, overlaps; README, Results): these floors catch a
 # regression, they are not targets.
 MEASURED = {
     ("overhead", 0): (0.972, 0.957),
-    ("mast", 0): (0.039, 0.256),
-    ("side", 0): (-0.438, 0.270),
+    ("mast", 0): (0.092, 0.297),
+    ("side", 0): (-0.342, 0.326),
     ("junction", 0): (-0.030, 0.393),
 }
 
@@ -58,11 +61,12 @@ def _render(scene: str, seed: int, out: Path) -> Path:
 # scene, seed: the sum over the suite's two lines (y = 0.6 H, x = 0.5 W) and both directions
 # of |count - true count|, the truth being the same line rule on gt.csv's boxes; measured on
 # the same commit (before it, overhead 1: a car's track deleted as the duplicate of a
-# standing truck's); the slice allows COUNT_MARGIN more, the overhead road none.
+# standing truck's; side lowered from 5 to 4 with the shift tolerance); the slice allows
+# COUNT_MARGIN more, the overhead road none.
 COUNT_ERRORS = {
     ("overhead", 0): 0,
     ("mast", 0): 12,
-    ("side", 0): 5,
+    ("side", 0): 4,
     ("junction", 0): 2,
 }
 COUNT_MARGIN = 1
