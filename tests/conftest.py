@@ -7,6 +7,7 @@ import contextlib
 import io
 import os
 import platform
+import signal
 import struct
 from pathlib import Path
 
@@ -249,3 +250,16 @@ def read_video():
 def clip_jpegs(synth_video):
     """The frames of the synthetic clip of seed 0 (640x360, 250 frames) as JPEG images."""
     return jpeg_frames(synth_video(0) / "video.avi")
+
+
+@pytest.fixture
+def terminal_sigint():
+    """SIGINT for the processes a test starts as a terminal's foreground job has it. A test
+    run started in the background (`cmd &` in a script) inherits SIGINT ignored, and so
+    would every vtrack it starts: Unix keeps Ctrl-C away from background jobs, and the
+    interrupt tests would see the run finish instead of stopping."""
+    previous = signal.getsignal(signal.SIGINT)
+    if previous == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # children get SIG_DFL
+    yield
+    signal.signal(signal.SIGINT, previous)

@@ -133,7 +133,7 @@ def test_real_clip_line_counts_match_hand_counts(tmp_path, real_clip, clip, line
             assert abs(total - expected) <= 0.1 * expected
 
 
-def test_interrupt_flushes_valid_files(synth_video, tmp_path, read_video):
+def test_interrupt_flushes_valid_files(synth_video, tmp_path, read_video, terminal_sigint):
     src = synth_video(1)
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
     proc = subprocess.Popen([sys.executable, "-m", "vtrack", "track", str(src / "video.avi"),

@@ -241,7 +241,8 @@ def _alive(pid: int) -> bool:
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 @pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
-def test_interrupted_batch_exits_130_and_resumes(tmp_path, clip_factory, how):
+def test_interrupted_batch_exits_130_and_resumes(tmp_path, clip_factory, how,
+                                                 terminal_sigint):
     frames = 800
     for k in range(3):
         _copy(clip_factory(frames, 10 + k), tmp_path / "in" / f"v{k}.avi")
