@@ -221,7 +221,8 @@ class Tracker:
         edges_cut = border_cut(boxes, self.width, self.height)
         cut = edges_cut.any(axis=2)
         expected = spread = np.full((len(mt), 2), np.nan)
-        partial = anchored(tracks, mt, boxes, t, self._size_rates(mt))
+        rates = self._size_rates(mt)
+        partial = anchored(tracks, mt, boxes, t, rates)
         if cfg.own_size:
             expected, spread = own_size(tracks.own[mt], self.field.k(tracks.x[mt, :2]))
             expected[partial] = np.nan
@@ -231,7 +232,7 @@ class Tracker:
         # filter's rates) faster than its size estimate follows: the size starts again
         # from the detection.
         sigma = detection_sigma(cfg, np.sqrt(size.prod(axis=1)))[:, None]
-        receding = np.all(self._size_rates(mt) < 0, axis=1)
+        receding = np.all(rates < 0, axis=1)
         smaller = ((shrunk(tracks.x[mt, :2], size, boxes, sigma) & receding & ~partial)[:, None]
                    & ~cut)
         # A whole side is never a border-cut one (box_size.py), so `shows_whole` has no cut.

@@ -197,7 +197,7 @@ class MotionDetector:
         roi = load_roi(cfg.roi_mask, size) if cfg.roi_mask else None
         self.clean = MaskCleaner(roi, cfg.open_kernel, cfg.close_kernel)
         self.shifted = (ShiftTolerance(cfg.shift_tolerance, cfg.shift_radius)
-                        if cfg.shift_tolerance > 0 else None)
+                        if cfg.shift_tolerance > 0 and cfg.stabilise else None)
         self.motion = MotionMap() if cfg.min_motion > 0 else None
         self.stabiliser = (Stabiliser(*size, probe_frames=max(1, round(2.0 * fps)),
                                       still_px=cfg.stabilise_still_px)
@@ -252,7 +252,7 @@ class MotionDetector:
             fg = textured_shadow(raw, small, self.background.image(), cfg.shadow_texture)
         else:
             fg = drop_shadows(raw, cfg.shadow_threshold)
-        if self.shifted is not None and self.stabiliser is not None and self.stabiliser.moved:
+        if self.shifted is not None and self.stabiliser.moved:  # only with a stabiliser
             fg = self.shifted(fg, small, self.background.image())
         self.foreground = self.clean(fg)
         moving = None
