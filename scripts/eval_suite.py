@@ -191,6 +191,7 @@ def count(tracks: Path, lines: list[list[float]]) -> list[list[int]]:
 
 def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | None,
              peers: bool) -> Result:
+    from vtrack.evaluation.detector_misses import miss_table
     from vtrack.evaluation.mot import detection_scores, evaluate, read_mot
 
     t0 = time.perf_counter()
@@ -222,8 +223,8 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
                 outputs[name] = run_peer(name, out / "detections.csv", summary["fps_video"],
                                          summary["frames"], out)
         if synthetic:
-            res.detector = detection_scores(read_mot(src / "gt.csv"),
-                                            read_detections(out / "detections.csv"))
+            gt, dets = read_mot(src / "gt.csv"), read_detections(out / "detections.csv")
+            res.detector = detection_scores(gt, dets) | {"misses": miss_table(gt, dets)}
             truth = count(src / "gt.csv", lines)
             res.hand = [[label, [f, f], [b, b]] for (label, _), (f, b) in zip(named, truth)]
         for name, path in outputs.items():
@@ -317,10 +318,48 @@ def print_table(results: list[Result], trackers: list[str], summary: dict) -> No
         print("det.recall: the share of the ground truth the raw detections match (IoU >= "
               "0.5, one to one),\nthe ceiling of a tracker's MOTA on them without coasting")
         print()
+        print_misses([r for r in synth if r.detector.get("misses")])
     print_counts([r for r in synth if r.counts], trackers, summary, "synthetic clip",
                  "true", "synth_counts", "synth_count")
     print_counts([r for r in results if r.kind == "real"], trackers, summary, "real clip",
                  "hand", "counts", "count")
+
+
+def print_misses(results: list[Result]) -> None:
+    """Per synthetic clip, where the raw detections lose the visible ground truth
+    (vtrack/evaluation/detector_misses.py): the share of it in each class, then the share
+    of the boxes no detection covers among the far (side < 15 px), middle and near ones
+    and among the standing (< 0.5 px per frame), slow and moving ones."""
+    from vtrack.evaluation.detector_misses import CLASSES
+
+    if not results:
+        return
+    table = results[0].detector["misses"]["none_by_side_speed"]
+    bands = [f"{b}px" for b in table] + [f"{v}px/f" for v in next(iter(table.values()))]
+    print(f"{'detector misses':<22}" + "".join(f"{c:>9}" for c in CLASSES)
+          + "".join(f"{'none@' + b:>16}" for b in bands))
+    total = {c: 0.0 for c in CLASSES}
+    for r in results:
+        m = r.detector["misses"]
+        for c in CLASSES:
+            total[c] += m["shares"][c] * m["rows"]
+        table = m["none_by_side_speed"]
+        cells = [list(band.values()) for band in table.values()]           # side x speed
+        groups = cells + [list(col) for col in zip(*cells)]              # then speed bands
+        none = []
+        for group in groups:
+            rows = sum(v[0] for v in group)
+            share = sum(v[0] * v[1] for v in group) / max(rows, 1)
+            none.append(f"{share:6.2f} of {rows:<5d}")
+        print(f"{r.clip:<22}" + "".join(f"{m['shares'][c]:9.2f}" for c in CLASSES)
+              + "".join(f"{x:>16}" for x in none))
+    n = max(sum(r.detector["misses"]["rows"] for r in results), 1)
+    print(f"{'all':<22}" + "".join(f"{total[c] / n:9.2f}" for c in CLASSES))
+    print("a visible box no detection matches: none (< 30 % of it covered), merged (inside a "
+          "blob > 1.6x its\narea), fragment (the best blob < 0.6x), offset; none@a-b: the "
+          "share of the boxes of side a-b px\n(or moving a-b px per frame) that no "
+          "detection covers")
+    print()
 
 
 def print_counts(results: list[Result], trackers: list[str], summary: dict, kind: str,
