@@ -192,6 +192,7 @@ def count(tracks: Path, lines: list[list[float]]) -> list[list[int]]:
 def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | None,
              peers: bool) -> Result:
     from vtrack.evaluation.detector_misses import miss_table
+    from vtrack.evaluation.false_positives import false_positive_counts
     from vtrack.evaluation.mot import detection_scores, evaluate, read_mot
 
     t0 = time.perf_counter()
@@ -231,6 +232,7 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
             if synthetic:
                 s = evaluate(src / "gt.csv", path)
                 res.scores[name] = {k: s[k] for k in METRICS}
+                res.scores[name]["fp_causes"] = false_positive_counts(gt, dets, read_mot(path))
             res.counts[name] = count(path, lines)
     except Exception as exc:  # noqa: BLE001 - a failing clip is reported, the suite goes on
         res.error = f"{type(exc).__name__}: {exc}"
@@ -319,6 +321,7 @@ def print_table(results: list[Result], trackers: list[str], summary: dict) -> No
               "0.5, one to one),\nthe ceiling of a tracker's MOTA on them without coasting")
         print()
         print_misses([r for r in synth if r.detector.get("misses")])
+        print_false_positives([r for r in synth if not r.error], trackers)
     print_counts([r for r in synth if r.counts], trackers, summary, "synthetic clip",
                  "true", "synth_counts", "synth_count")
     print_counts([r for r in results if r.kind == "real"], trackers, summary, "real clip",
@@ -359,6 +362,34 @@ def print_misses(results: list[Result]) -> None:
           "blob > 1.6x its\narea), fragment (the best blob < 0.6x), offset; none@a-b: the "
           "share of the boxes of side a-b px\n(or moving a-b px per frame) that no "
           "detection covers")
+    print()
+
+
+def print_false_positives(results: list[Result], trackers: list[str]) -> None:
+    """Per synthetic clip and tracker, its false positives by cause
+    (vtrack/evaluation/false_positives.py), and the sums over the clips."""
+    from vtrack.evaluation.false_positives import CLASSES
+
+    if not results:
+        return
+    heads = ("coasted", "false det.", "box off det.", "other")
+    print(f"{'false positives':<22}{'tracker':<11}" + "".join(f"{h:>14}" for h in heads))
+    total = {t: dict.fromkeys(CLASSES, 0) for t in trackers}
+    for r in results:
+        for t in trackers:
+            fp = r.scores.get(t, {}).get("fp_causes")
+            if fp is None:
+                continue
+            for c in CLASSES:
+                total[t][c] += fp[c]
+            print(f"{r.clip if t == trackers[0] else '':<22}{t:<11}"
+                  + "".join(f"{fp[c]:14d}" for c in CLASSES))
+    for t in trackers:
+        print(f"{'sum' if t == trackers[0] else '':<22}{t:<11}"
+              + "".join(f"{total[t][c]:14d}" for c in CLASSES))
+    print("a tracker row no visible ground truth matches: coasted (no detection), a false "
+          "detection passed\non, a box that overlaps a detection matching the ground truth "
+          "while the box does not, other")
     print()
 
 
