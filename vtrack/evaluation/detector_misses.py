@@ -19,10 +19,9 @@ far vehicle falls under the noise floor, a slow or standing one melts into the b
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
-from vtrack.boxes import intersection, iou
-from vtrack.evaluation.mot import MIN_VISIBILITY
+from vtrack.boxes import intersection
+from vtrack.evaluation.mot import ignore_mask, match_boxes
 
 CLASSES = ("matched", "none", "merged", "fragment", "offset")
 SIDE_EDGES = (0.0, 15.0, 30.0, np.inf)     # px: far, middle, near vehicles
@@ -51,11 +50,10 @@ def gt_speed(gt: np.ndarray) -> np.ndarray:
 
 def classify_misses(gt: np.ndarray, detections: np.ndarray) -> np.ndarray:
     """(N,) class index into CLASSES of each visible ground-truth row (rows of MOT columns,
-    the 11th the visible fraction; rows below MIN_VISIBILITY get -1) against per-frame
+    the 11th the visible fraction; ignore rows (mot.ignore_mask) get -1) against per-frame
     detections (MOT columns, ids ignored)."""
     out = np.full(len(gt), -1)
-    visible = gt[:, 10] >= MIN_VISIBILITY if gt.shape[1] > 10 else np.ones(len(gt), bool)
-    visible &= gt[:, 6] != 0
+    visible = ~ignore_mask(gt)
     for frame in np.unique(gt[visible, 0]):
         gi = np.flatnonzero(visible & (gt[:, 0] == frame))
         g = gt[gi, 2:6]
@@ -63,11 +61,8 @@ def classify_misses(gt: np.ndarray, detections: np.ndarray) -> np.ndarray:
         if len(d) == 0:
             out[gi] = CLASSES.index("none")
             continue
-        overlap = iou(g, d)
-        rows, cols = linear_sum_assignment(-np.where(overlap >= 0.5, overlap, 0.0))
-        good = overlap[rows, cols] >= 0.5
         cls = np.full(len(gi), -1)
-        cls[rows[good]] = CLASSES.index("matched")
+        cls[match_boxes(g, d)[0]] = CLASSES.index("matched")
         covered = intersection(g[:, None], d[None]) / np.maximum(g[:, 2:3] * g[:, 3:4], 1e-9)
         best = covered.argmax(axis=1)
         share = covered[np.arange(len(gi)), best]

@@ -19,21 +19,17 @@ own identity the four classes add up to trackeval's CLEAR false positives (teste
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from vtrack.boxes import intersection, iou
-from vtrack.evaluation.mot import MATCH_IOU, drop_ignored
+from vtrack.evaluation.mot import MATCH_IOU, drop_ignored, match_boxes
 
 CLASSES = ("coasted", "false detection", "box off a true detection", "other")
 
 
 def _matched(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(len(a),) whether each box of a is matched one to one to a box of b at IoU >= 0.5."""
+    """(len(a),) whether each box of a has a one-to-one match in b (`match_boxes`)."""
     out = np.zeros(len(a), dtype=bool)
-    if len(a) and len(b):
-        overlap = iou(a, b)
-        rows, cols = linear_sum_assignment(-np.where(overlap >= MATCH_IOU, overlap, 0.0))
-        out[rows[overlap[rows, cols] >= MATCH_IOU]] = True
+    out[match_boxes(a, b)[0]] = True
     return out
 
 
@@ -51,10 +47,8 @@ def classify_false_positives(gt: np.ndarray, detections: np.ndarray, tracks: np.
         hit = _matched(boxes, truth)
         true_det = _matched(dets, truth)
         coasted = tracks[ti, 6] < 1.0
-        on_det = (iou(boxes, dets) >= MATCH_IOU) if len(dets) else np.zeros((len(ti), 0), bool)
-        false_det = (on_det & ~true_det[None, :]).any(axis=1)
-        off_true = ((intersection(boxes[:, None], dets[true_det][None]) > 0).any(axis=1)
-                    if true_det.any() else np.zeros(len(ti), dtype=bool))
+        false_det = (iou(boxes, dets[~true_det]) >= MATCH_IOU).any(axis=1)
+        off_true = (intersection(boxes[:, None], dets[true_det][None]) > 0).any(axis=1)
         why = np.select([coasted, false_det, off_true], [0, 1, 2], 3)
         cls[ti] = np.where(hit, -1, why)
     return tracks, cls

@@ -116,6 +116,18 @@ def ignore_mask(gt: np.ndarray) -> np.ndarray:
     return mask
 
 
+def match_boxes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One-to-one pairs (rows into a, cols into b) of boxes a (n, 4) and b (m, 4) with
+    IoU >= MATCH_IOU: the Hungarian method on IoU, trackeval's threshold (less a float eps)."""
+    if len(a) == 0 or len(b) == 0:
+        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+    iou = box_iou(a, b)
+    iou[iou < MATCH_IOU - np.finfo(float).eps] = 0.0
+    rows, cols = linear_sum_assignment(-iou)
+    matched = iou[rows, cols] > 0
+    return rows[matched], cols[matched]
+
+
 def drop_ignored(gt: np.ndarray, tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Remove ignore GT rows, and the tracker rows matched to them (MOTChallenge preprocessing).
 
@@ -127,13 +139,8 @@ def drop_ignored(gt: np.ndarray, tracks: np.ndarray) -> tuple[np.ndarray, np.nda
     for frame in np.unique(gt[ignore, 0]):
         g = gt[:, 0] == frame
         t = np.flatnonzero(tracks[:, 0] == frame)
-        if t.size == 0:
-            continue
-        iou = box_iou(gt[g, 2:6], tracks[t, 2:6])
-        iou[iou < MATCH_IOU - np.finfo(float).eps] = 0.0
-        rows, cols = linear_sum_assignment(-iou)
-        matched = iou[rows, cols] > 0
-        keep[t[cols[matched & ignore[g][rows]]]] = False
+        rows, cols = match_boxes(gt[g, 2:6], tracks[t, 2:6])
+        keep[t[cols[ignore[g][rows]]]] = False
     return gt[~ignore], tracks[keep]
 
 
