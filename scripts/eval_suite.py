@@ -10,7 +10,8 @@ table: per synthetic clip MOTA, IDF1, HOTA, ID switches, FP, FN per tracker and 
 the raw detections (the detector's ceiling: a loss above it is the tracker's, below it the
 detector's); per synthetic clip the counts on two lines (y = 0.6 H and x = 0.5 W) beside the
 true counts, which the same line rule gives on the ground truth's boxes; per real clip and
-line the counts beside the hand range; the mean and the worst per column.
+line the counts beside the hand range; the mean and the worst per column, and MOTChallenge's
+combined scores over the synthetic clips (their counts pooled).
 
     .venv/bin/python scripts/eval_suite.py                 # the whole suite, 2 workers
     .venv/bin/python scripts/eval_suite.py --json suite.json
@@ -79,6 +80,7 @@ class Result:
     hand: list = field(default_factory=list)   # [[line, [lo, hi], [lo, hi]], ...]: the hand
     #                                            range (real) or the true count (synthetic)
     detector: dict = field(default_factory=dict)            # recall, precision (synthetic)
+    files: dict[str, str] = field(default_factory=dict)     # "gt" and tracker -> MOT file
     error: str = ""
 
 
@@ -230,6 +232,7 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
             res.hand = [[label, [f, f], [b, b]] for (label, _), (f, b) in zip(named, truth)]
         for name, path in outputs.items():
             if synthetic:
+                res.files |= {"gt": str(src / "gt.csv"), name: str(path)}
                 s = evaluate(src / "gt.csv", path)
                 res.scores[name] = {k: s[k] for k in METRICS}
                 res.scores[name]["fp_causes"] = false_positive_counts(gt, dets, read_mot(path))
@@ -268,6 +271,19 @@ def count_summary(results: list[Result], tracker: str, counts: str, count: str) 
             f"{count}_relative_error": float(e.sum() / max(sum(hi for _, hi in errs), 1))}
 
 
+def combined_scores(results: list[Result], tracker: str) -> dict:
+    """MOTChallenge's combined scores of a tracker over the synthetic clips it ran on
+    (`mot.evaluate_combined`: the clips' counts pooled, so a clip weighs by its boxes)."""
+    from vtrack.evaluation.mot import evaluate_combined, read_mot
+
+    pairs = [(read_mot(r.files["gt"]), read_mot(r.files[tracker])) for r in results
+             if tracker in r.files]
+    if not pairs:
+        return {}
+    comb = evaluate_combined(pairs)
+    return {m: comb[m] for m in METRICS}
+
+
 def summarise(results: list[Result], trackers: list[str]) -> dict:
     out: dict[str, dict] = {}
     synth = [r for r in results if r.kind == "synthetic" and not r.error]
@@ -279,6 +295,9 @@ def summarise(results: list[Result], trackers: list[str]) -> dict:
             if vals:
                 s[f"{m}_mean"] = float(np.mean(vals))
                 s[f"{m}_worst"] = float(min(vals) if m in HIGHER_IS_BETTER else max(vals))
+        combined = combined_scores(synth, t)
+        if combined:
+            s["combined"] = combined
         s.update(count_summary(real, t, "counts", "count"))
         s.update(count_summary(synth, t, "synth_counts", "synth_count"))
         out[t] = s
@@ -306,19 +325,23 @@ def print_table(results: list[Result], trackers: list[str], summary: dict) -> No
                     print(f"{r.clip if first else '':<22}{t:<11}{s['mota']:7.3f}"
                           f"{s['idf1']:7.3f}{s['hota']:7.3f}{s['id_switches']:6d}"
                           f"{s['false_positives']:6d}{s['misses']:6d}{ceiling}")
-        for agg in ("mean", "worst"):
+        for agg in ("mean", "worst", "combined"):
             for t in trackers:
                 s = summary.get(t, {})
-                if "mota_mean" not in s:
+                if "mota_mean" not in s or (agg == "combined" and "combined" not in s):
                     continue
-                v = [s[f"{m}_{agg}"] for m in METRICS]
+                v = ([s["combined"][m] for m in METRICS] if agg == "combined"
+                     else [s[f"{m}_{agg}"] for m in METRICS])
                 det = summary.get("detector", {})
                 first = t == trackers[0]
-                ceiling = f"{det[f'recall_{agg}']:12.3f}" if first and det else ""
+                ceiling = (f"{det[f'recall_{agg}']:12.3f}"
+                           if first and f"recall_{agg}" in det else "")
                 print(f"{agg if first else '':<22}{t:<11}{v[0]:7.3f}{v[1]:7.3f}"
                       f"{v[2]:7.3f}{v[3]:6.0f}{v[4]:6.0f}{v[5]:6.0f}{ceiling}")
         print("det.recall: the share of the ground truth the raw detections match (IoU >= "
-              "0.5, one to one),\nthe ceiling of a tracker's MOTA on them without coasting")
+              "0.5, one to one),\nthe ceiling of a tracker's MOTA on them without coasting; "
+              "combined: MOTChallenge's scores\nover all synthetic clips pooled (a clip "
+              "weighs by its boxes; mean: each clip alike)")
         print()
         print_misses([r for r in synth if r.detector.get("misses")])
         print_false_positives([r for r in synth if not r.error], trackers)

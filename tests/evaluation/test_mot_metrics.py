@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from vtrack.errors import InputError
-from vtrack.evaluation.mot import detection_scores, evaluate, evaluate_arrays, read_mot
+from vtrack.evaluation.mot import (detection_scores, evaluate, evaluate_arrays, evaluate_combined,
+                                  read_mot)
 
 
 def row(frame: int, ident: int, lane: int, vis: float | None = None) -> list[float]:
@@ -68,6 +69,32 @@ def test_false_positives():
     assert res["false_positives"] == 5 and res["misses"] == 0
     assert res["mota"] == pytest.approx(1 - 5 / 20)
     assert res["precision"] == pytest.approx(20 / 25)
+
+
+def test_combined_scores_pool_the_sequences_counts():
+    """MOTChallenge's combined MOTA and IDF1 are those of the pooled counts, computed here
+    from each sequence's own result: a short perfect sequence and a long one with a missed
+    object and an identity switch. The mean of the two MOTAs weighs them alike; the combined
+    one weighs the long sequence's 40 boxes against the short one's 20."""
+    long_gt = np.array(track(range(1, 21), 1, 0) + track(range(1, 21), 2, 1))
+    long_tr = np.array(track(range(1, 11), 1, 0) + track(range(11, 21), 3, 0))
+    seqs = [(GT, GT.copy()), (long_gt, long_tr)]
+    each = [evaluate_arrays(g, t) for g, t in seqs]
+    comb = evaluate_combined(seqs)
+    errors = sum(r["misses"] + r["false_positives"] + r["id_switches"] for r in each)
+    boxes = sum(r["gt_boxes"] for r in each)
+    assert (each[1]["misses"], each[1]["id_switches"]) == (20, 1)
+    assert comb["mota"] == pytest.approx(1 - errors / boxes)          # 1 - 21 / 60
+    assert comb["mota"] != pytest.approx(np.mean([r["mota"] for r in each]))
+    idtp = sum(r["idf1"] * (r["gt_boxes"] + r["pred_boxes"]) / 2 for r in each)
+    assert comb["idf1"] == pytest.approx(2 * idtp / (boxes + sum(r["pred_boxes"] for r in each)))
+    assert min(r["hota"] for r in each) < comb["hota"] < max(r["hota"] for r in each)
+    assert (comb["gt_boxes"], comb["pred_boxes"]) == (60, 40)
+    one = evaluate_combined(seqs[1:])
+    assert {k: one[k] for k in ("mota", "idf1", "hota")} == \
+        {k: each[1][k] for k in ("mota", "idf1", "hota")}
+    with pytest.raises(ValueError):
+        evaluate_combined([])
 
 
 def test_empty_tracks_are_all_misses():

@@ -27,7 +27,6 @@ from vtrack.fileio import open_input
 MIN_VISIBILITY = 0.3
 MATCH_IOU = 0.5
 INSTALL_HINT = "pip install --no-deps trackeval==1.3.0 tabulate"
-_SEQ = "seq"
 _TRACKER = "vtrack"
 
 
@@ -162,9 +161,38 @@ def evaluate_arrays(gt: np.ndarray, tracks: np.ndarray) -> dict[str, Any]:
     deta, assa, motp, gt_ids, pred_ids, gt_boxes, pred_boxes, ignored_gt_boxes,
     ignored_pred_boxes, frames).
     """
-    frames = int(max(gt[:, 0].max(initial=0), tracks[:, 0].max(initial=0)))
+    frames = _frames(gt, tracks)
     gt_kept, tracks_kept = drop_ignored(gt, tracks)
-    raw = _run_trackeval(gt_kept, tracks_kept, max(frames, 1))
+    raw = _run_trackeval([(gt_kept, tracks_kept, max(frames, 1))])[_seq(0)]
+    return _scores(raw) | {
+        "gt_ids": len(np.unique(gt_kept[:, 1])),
+        "pred_ids": len(np.unique(tracks_kept[:, 1])),
+        "gt_boxes": len(gt_kept),
+        "pred_boxes": len(tracks_kept),
+        "ignored_gt_boxes": len(gt) - len(gt_kept),
+        "ignored_pred_boxes": len(tracks) - len(tracks_kept),
+        "frames": frames,
+    }
+
+
+def evaluate_combined(sequences: list[tuple[np.ndarray, np.ndarray]]) -> dict[str, Any]:
+    """MOTChallenge's combined scores over several sequences, each a (gt, tracks) pair of
+    arrays: trackeval pools the sequences' counts (CLEAR's TP / FP / FN / IDSW and
+    Identity's IDTP / IDFP / IDFN summed; HOTA from the summed per-threshold counts), the
+    way its leaderboards rank trackers, so a sequence weighs by its boxes (a mean of
+    per-sequence scores weighs each sequence alike). Keys as `evaluate_arrays`' scores
+    (mota ... motp), with gt_boxes and pred_boxes summed."""
+    if not sequences:
+        raise ValueError("evaluate_combined needs at least one sequence")
+    kept = [(*drop_ignored(gt, tracks), max(_frames(gt, tracks), 1))
+            for gt, tracks in sequences]
+    raw = _run_trackeval(kept)["COMBINED_SEQ"]
+    return _scores(raw) | {"gt_boxes": sum(len(g) for g, _, _ in kept),
+                           "pred_boxes": sum(len(t) for _, t, _ in kept)}
+
+
+def _scores(raw: dict[str, Any]) -> dict[str, Any]:
+    """The headline numbers of one trackeval result (one sequence or combined)."""
     hota, clear, ident = raw["HOTA"], raw["CLEAR"], raw["Identity"]
     return {
         "mota": float(clear["MOTA"]),
@@ -179,13 +207,6 @@ def evaluate_arrays(gt: np.ndarray, tracks: np.ndarray) -> dict[str, Any]:
         "deta": float(np.mean(hota["DetA"])),
         "assa": float(np.mean(hota["AssA"])),
         "motp": float(clear["MOTP"]),
-        "gt_ids": len(np.unique(gt_kept[:, 1])),
-        "pred_ids": len(np.unique(tracks_kept[:, 1])),
-        "gt_boxes": len(gt_kept),
-        "pred_boxes": len(tracks_kept),
-        "ignored_gt_boxes": len(gt) - len(gt_kept),
-        "ignored_pred_boxes": len(tracks) - len(tracks_kept),
-        "frames": frames,
     }
 
 
@@ -200,19 +221,32 @@ def detection_scores(gt: np.ndarray, detections: np.ndarray) -> dict[str, float]
     return {"recall": res["recall"], "precision": res["precision"]}
 
 
-def _run_trackeval(gt: np.ndarray, tracks: np.ndarray, frames: int) -> dict[str, Any]:
-    """Evaluate one sequence with trackeval's MotChallenge2DBox, silencing all its output."""
+def _frames(gt: np.ndarray, tracks: np.ndarray) -> int:
+    """The last frame either array has a row in (0 if neither has rows)."""
+    return int(max(gt[:, 0].max(initial=0), tracks[:, 0].max(initial=0)))
+
+
+def _seq(i: int) -> str:
+    return f"seq{i:04d}"
+
+
+def _run_trackeval(sequences: list[tuple[np.ndarray, np.ndarray, int]]) -> dict[str, Any]:
+    """Evaluate (gt, tracks, frames) sequences with trackeval's MotChallenge2DBox, silencing
+    all its output; returns its result per sequence name (`_seq(i)`) and "COMBINED_SEQ"."""
     sink = io.StringIO()
     with (tempfile.TemporaryDirectory(prefix="vtrack-eval-") as root,
           contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink),
           warnings.catch_warnings()):
         warnings.simplefilter("ignore")
         trackeval = _import_trackeval()
-        gt_root, trk_root = _write_layout(Path(root), gt, tracks)
+        gt_root, trk_root = Path(root) / "gt", Path(root) / "trackers"
+        for i, (gt, tracks, _) in enumerate(sequences):
+            _write_layout(gt_root, trk_root, _seq(i), gt, tracks)
         dataset = trackeval.datasets.MotChallenge2DBox({
             "GT_FOLDER": str(gt_root), "TRACKERS_FOLDER": str(trk_root),
             "TRACKERS_TO_EVAL": [_TRACKER], "SKIP_SPLIT_FOL": True, "DO_PREPROC": False,
-            "PRINT_CONFIG": False, "SEQ_INFO": {_SEQ: frames}, "OUTPUT_FOLDER": None})
+            "PRINT_CONFIG": False, "OUTPUT_FOLDER": None,
+            "SEQ_INFO": {_seq(i): frames for i, (_, _, frames) in enumerate(sequences)}})
         evaluator = trackeval.Evaluator({
             "USE_PARALLEL": False, "BREAK_ON_ERROR": True, "LOG_ON_ERROR": None,
             "PRINT_RESULTS": False, "PRINT_CONFIG": False, "TIME_PROGRESS": False,
@@ -220,7 +254,8 @@ def _run_trackeval(gt: np.ndarray, tracks: np.ndarray, frames: int) -> dict[str,
         metrics = [trackeval.metrics.HOTA(), trackeval.metrics.CLEAR(),
                    trackeval.metrics.Identity()]
         res, _ = evaluator.evaluate([dataset], metrics)
-    return res["MotChallenge2DBox"][_TRACKER][_SEQ]["pedestrian"]
+    by_seq = res["MotChallenge2DBox"][_TRACKER]
+    return {name: r["pedestrian"] for name, r in by_seq.items()}
 
 
 def _import_trackeval() -> Any:
@@ -231,17 +266,18 @@ def _import_trackeval() -> Any:
     return trackeval
 
 
-def _write_layout(root: Path, gt: np.ndarray, tracks: np.ndarray) -> tuple[Path, Path]:
-    """Write gt/<seq>/gt/gt.txt and trackers/<name>/data/<seq>.txt as trackeval expects."""
-    gt_file = root / "gt" / _SEQ / "gt" / "gt.txt"
-    trk_file = root / "trackers" / _TRACKER / "data" / f"{_SEQ}.txt"
+def _write_layout(gt_root: Path, trk_root: Path, seq: str, gt: np.ndarray,
+                  tracks: np.ndarray) -> None:
+    """Write <gt_root>/<seq>/gt/gt.txt and <trk_root>/<name>/data/<seq>.txt as trackeval
+    expects."""
+    gt_file = gt_root / seq / "gt" / "gt.txt"
+    trk_file = trk_root / _TRACKER / "data" / f"{seq}.txt"
     gt_file.parent.mkdir(parents=True)
-    trk_file.parent.mkdir(parents=True)
+    trk_file.parent.mkdir(parents=True, exist_ok=True)
     ones = np.ones((len(gt), 1))
     # gt: frame,id,box,conf=1,class=1,visibility=1; tracker: frame,id,box,conf,-1,-1,-1
     _savetxt(gt_file, np.hstack([gt[:, :6], ones, ones, ones]))
     _savetxt(trk_file, np.hstack([tracks[:, :7], -np.ones((len(tracks), 3))]))
-    return root / "gt", root / "trackers"
 
 
 def _savetxt(path: Path, rows: np.ndarray) -> None:
