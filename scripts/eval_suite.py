@@ -195,7 +195,7 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
              peers: bool) -> Result:
     from vtrack.evaluation.detector_misses import miss_table
     from vtrack.evaluation.false_positives import false_positive_counts
-    from vtrack.evaluation.mot import detection_scores, evaluate, read_mot
+    from vtrack.evaluation.mot import detection_scores, evaluate_arrays, read_mot
 
     t0 = time.perf_counter()
     synthetic = isinstance(clip, SynthClip)
@@ -233,9 +233,10 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
         for name, path in outputs.items():
             if synthetic:
                 res.files |= {"gt": str(src / "gt.csv"), name: str(path)}
-                s = evaluate(src / "gt.csv", path)
+                rows = read_mot(path)
+                s = evaluate_arrays(gt, rows)
                 res.scores[name] = {k: s[k] for k in METRICS}
-                res.scores[name]["fp_causes"] = false_positive_counts(gt, dets, read_mot(path))
+                res.scores[name]["fp_causes"] = false_positive_counts(gt, dets, rows)
             res.counts[name] = count(path, lines)
     except Exception as exc:  # noqa: BLE001 - a failing clip is reported, the suite goes on
         res.error = f"{type(exc).__name__}: {exc}"
