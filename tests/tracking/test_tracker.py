@@ -184,6 +184,32 @@ def test_vehicles_of_one_blob_get_their_own_tracks_when_it_comes_apart():
     assert np.all(last.boxes[:, 3] < 30)  # neither box still spans both lanes
 
 
+def _truck_overtakes_car(t):
+    """A 300 x 200 truck overtakes a 40 x 30 car in the next lane; from t = 1.08 s the
+    detector gives one blob (their union), from 1.23 s the car's box lies mostly inside the
+    truck's (mg70_motorway_trucks: a car beside an articulated truck)."""
+    car = (460 + 20 * t, 135, 40, 30)
+    truck = (20 + 150 * t, 100, 300, 200)
+    if truck[0] + truck[2] < car[0]:
+        return [car, truck]   # the car first: its track is the older one
+    x1 = max(truck[0] + truck[2], car[0] + car[2])
+    return [(truck[0], 100, x1 - truck[0], 200)]
+
+
+def test_large_vehicle_keeps_the_blob_a_small_one_lies_in():
+    """The blob is the truck's: the car's (older) track neither takes it nor has the
+    truck's track deleted as its duplicate."""
+    states = _run_boxes(_truck_overtakes_car, frames=50, noise=0.3)
+    apart = states[24]                     # t = 0.96 s: both confirmed, apart
+    assert len(apart.ids) == 2
+    truck_id = apart.ids[np.argmax(apart.boxes[:, 2])]
+    car_id = apart.ids[np.argmin(apart.boxes[:, 2])]
+    last = states[-1]
+    assert truck_id in last.ids
+    assert np.all(last.boxes[last.ids == truck_id, 2:] > [250, 170])
+    assert np.all(last.boxes[last.ids == car_id, 2] < 100)
+
+
 def _behind_a_pole(t):
     """One car (60 px long) passing behind a static pole at x in [300, 312]: while it
     overlaps the pole it is detected as two pieces with a gap that does not move."""

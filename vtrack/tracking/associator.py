@@ -16,11 +16,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.boxes import intersection, overlap_of_smaller
+from vtrack.boxes import intersection, overlap_of_smaller, paired_iou
 from vtrack.tracking.association import assign, gated_pairs, nearest_pairs
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.measurements import nested_centre
 from vtrack.tracking.table import TrackTable
+
+
+SMALL_IN_BLOB = 0.25  # a track box under this share of a shared blob is not its duplicate
 
 
 def detection_sigma(cfg: TrackerConfig, scale: np.ndarray) -> np.ndarray:
@@ -138,7 +141,10 @@ def _resolve_shared(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray,
     A standing track (lifecycle.py) among moving ones is being passed: it is left out.
     If those tracks' boxes largely overlap (the intersection covers over half of the smaller
     box), they follow one vehicle: the oldest track takes the detection and the younger ones
-    are duplicates. Otherwise the detection is a merged blob of several vehicles: its
+    are duplicates; but where the oldest's box is under a quarter of the blob and another's
+    is the blob (IoU >= 0.5), the oldest follows a smaller vehicle seen over a larger one (a
+    car beside a truck): the larger vehicle's track takes the blob and the others coast,
+    none deleted. Otherwise the detection is a merged blob of several vehicles: its
     centroid belongs to none of them, so those tracks coast instead of being pulled toward
     the middle, and the blob is consumed (it starts no track).
     Returns the pairs, the consumed detections and the duplicate tracks.
@@ -171,12 +177,26 @@ def _resolve_shared(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray,
         oldest = held[np.argmin(tracks.uid[held])]
         others = held[held != oldest]
         if np.all(overlap_of_smaller(track_boxes[oldest], track_boxes[others]) > 0.5):
-            mt, md = np.append(mt, oldest), np.append(md, d)
-            duplicates.append(others)
+            fitting = _fitting_track(track_boxes[held], track_boxes[oldest], boxes[d])
+            if fitting is None:
+                mt, md = np.append(mt, oldest), np.append(md, d)
+                duplicates.append(others)
+            else:  # a small vehicle in front of a large one: the large one's blob
+                mt, md = np.append(mt, held[fitting]), np.append(md, d)
         else:
             consumed.append(int(d))
     dup = np.concatenate(duplicates) if duplicates else none
     return mt, md, np.array(consumed, dtype=int), dup
+
+
+def _fitting_track(held_boxes: np.ndarray, oldest_box: np.ndarray, blob: np.ndarray
+                   ) -> int | None:
+    """Index into `held_boxes` of the track whose box is the blob `blob` (IoU >= 0.5, the
+    best), when the oldest track's box covers under a quarter of the blob; else None."""
+    if oldest_box[2] * oldest_box[3] >= SMALL_IN_BLOB * blob[2] * blob[3]:
+        return None
+    fit = paired_iou(held_boxes, blob[None])
+    return int(np.argmax(fit)) if fit.max() >= 0.5 else None
 
 
 def _reacquire(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray, md: np.ndarray,
