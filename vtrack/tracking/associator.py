@@ -181,7 +181,7 @@ def _resolve_shared(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray,
             if fitting is None:
                 mt, md = np.append(mt, oldest), np.append(md, d)
                 duplicates.append(others)
-            else:  # a small vehicle in front of a large one: the large one's blob
+            else:  # a small vehicle seen over a large one: the large one's blob
                 mt, md = np.append(mt, held[fitting]), np.append(md, d)
         else:
             consumed.append(int(d))
