@@ -41,6 +41,8 @@ ABLATIONS = {
     "no-size-gate": ("size updated by every detection (no partial-view / merge gating)",
                      "[tracker]\nsize_gate_probability = 0.999999999\n"
                      "size_shrink_seconds = 0.001\n"),
+    "no-smoothing": ("coasted stretches smoothed (RTS) once a detection confirms them",
+                     "[tracker]\nsmooth_coasted = false\n"),
     "white-fd": ("consistent finite-difference measurement (the seed's white R instead)",
                  "[tracker]\nmeasurement = \"finite-difference-white\"\n"),
 }

@@ -289,6 +289,31 @@ def test_coasted_rows_are_reported_only_when_the_reacquisition_confirms_them():
     assert by_lane[250][59].conf == 1.0 and by_lane[250][68].conf == 1.0
 
 
+def test_coasted_rows_are_smoothed_once_the_vehicle_is_reacquired():
+    """A vehicle at 150 px/s brakes at 100 px/s^2 while unseen for 10 frames; the
+    re-acquisition is on course (about 7 px behind the straight prediction: IoU 0.7). Smoothed
+    (RTS), the gap's rows follow the braking; unsmoothed, they are the prediction, whose
+    error grows to the re-acquisition's offset."""
+    gaps = set(range(60, 70))
+    t_brake = 59 / FPS
+
+    def braking(t):
+        dt = max(t - t_brake, 0.0)
+        return (40 + 150 * t - 0.5 * 100 * dt**2, 180.0)
+
+    def gap_errors(smooth):
+        rows, _ = _run([braking], gaps=gaps, frames=90, noise=0.3,
+                       cfg=TrackerConfig(smooth_coasted=smooth))
+        by_frame = {r.frame: r for r in rows}
+        assert {r.id for r in rows} == {1} and all(n in by_frame for n in gaps)
+        return np.array([by_frame[n].box[0] + 20 - braking((n - 1) / FPS)[0] for n in gaps])
+
+    smoothed, predicted = gap_errors(True), gap_errors(False)
+    assert np.abs(predicted).max() > 3.0           # the prediction overshoots the braking
+    assert np.abs(smoothed).max() < 0.5 * np.abs(predicted).max()
+    assert np.abs(smoothed).mean() < 0.5 * np.abs(predicted).mean()
+
+
 def test_detected_rows_show_the_whole_vehicle_detection_box():
     """An approaching vehicle's box grows 3 % a frame; the filtered size lags such growth,
     a detected row shows the detection's box."""

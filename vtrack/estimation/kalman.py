@@ -12,7 +12,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from vtrack.estimation.linalg import NotPositiveDefiniteError, symmetrize
+from vtrack.estimation.linalg import NotPositiveDefiniteError, cholesky, symmetrize
 
 _T = lambda a: np.swapaxes(a, -1, -2)  # noqa: E731  (transpose of the last two axes)
 
@@ -77,3 +77,19 @@ def kf_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np
     P_new = symmetrize(A @ P @ _T(A) + K @ R @ Kt)
     nis = np.sum(nu * sol[..., -1], axis=-1)
     return x_new, P_new, Innovation(nu=nu, S=S, K=K, nis=nis)
+
+
+def smooth_gap(x: np.ndarray, P: np.ndarray, Phi: np.ndarray, x_prior: np.ndarray,
+               P_prior: np.ndarray, x_post: np.ndarray) -> np.ndarray:
+    """Fixed-interval (Rauch-Tung-Striebel) smoothed means over a gap of predictions.
+
+    x (m, n), P (m, n, n): the means and covariances predicted at t_1..t_m after the last
+    update, with no measurement until t_n > t_m, where the update took the prior (x_prior,
+    P_prior) to the mean x_post; Phi (m, n, n) the transitions t_j -> t_n. With only
+    predictions in between (x_j+1 = F_j x_j), the RTS gains C_j = P_j F_j' P_j+1^-1 chain to
+    C_j ... C_n-1 = P_j Phi_j' P_prior^-1, the smoother's correction at t_n carried back by
+    each state's covariance with x_n:  x_s(j) = x_j + P_j Phi_j' P_prior^-1 (x_post - x_prior).
+    """
+    L = cholesky(P_prior, "prior covariance of the update that ends the gap")
+    y = np.linalg.solve(_T(L), np.linalg.solve(L, x_post - x_prior))
+    return x + (P @ _T(Phi) @ y)

@@ -81,6 +81,9 @@ class TrackerConfig:
     max_coast_seconds: float = field(default=1.0, metadata=_h(
         "time a confirmed track coasts on its prediction without a detection before it is "
         "deleted, s"))
+    smooth_coasted: bool = field(default=True, metadata=_h(
+        "report a coasted stretch that a detection confirms smoothed (fixed-interval RTS "
+        "smoother over the predictions, reporter.py), not as the straight prediction"))
     stand_speed: float = field(default=0.8, metadata=_h(
         "a confirmed track that loses its detection while slower than this, its speed's "
         "standard deviation included (box scales/s) "

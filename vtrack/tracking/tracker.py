@@ -71,7 +71,7 @@ class Tracker:
         self.associator = Associator(cfg, width, height)
         self.initiator = Initiator()
         self.confirmer = Confirmer(cfg, fps)
-        self.reporter = RowReporter(cfg.max_coast_seconds)
+        self.reporter = RowReporter(cfg.max_coast_seconds, width, height, cfg.smooth_coasted)
         self.t_prev: float | None = None
 
     def __len__(self) -> int:
@@ -118,6 +118,7 @@ class Tracker:
         tracks.killed[a.duplicates] = True
         innov = np.full(len(tracks), np.nan)
         predicted = tracks.boxes(self.width, self.height)[a.tracks]
+        prior_x, prior_P = tracks.x.copy(), tracks.P.copy()
         innov[a.tracks], whole = self._update(a.tracks, a.boxes[a.detections], t,
                                               a.split[a.tracks])
         hit = np.zeros(len(tracks), dtype=bool)
@@ -147,7 +148,10 @@ class Tracker:
         shown[a.tracks[whole]] = clip(a.boxes[a.detections][whole], self.width, self.height)
         on_course = np.ones(len(tracks), dtype=bool)
         on_course[a.tracks] = paired_iou(predicted, shown[a.tracks]) >= ON_COURSE_IOU
-        rows = self.reporter.rows(frame, t, tracks, shown, hit, on_course, inside, alive)
+        born = slice(len(prior_x), len(tracks))   # new tracks: no prior, never smoothed
+        rows = self.reporter.rows(frame, t, tracks, shown, hit, on_course, inside, alive,
+                                  np.concatenate([prior_x, tracks.x[born]]),
+                                  np.concatenate([prior_P, tracks.P[born]]))
         keep = inside & alive
         self.bank.forget(tracks.uid[~keep])
         tracks.keep(keep)
