@@ -274,8 +274,10 @@ def test_interrupted_batch_exits_130_and_resumes(tmp_path, clip_factory, how,
         if str(folder) in done:
             assert json.loads(summary.read_text())["complete"] is True
         elif summary.exists():
+            # an interrupt that lands after a video's last frame and before the run is
+            # finalised leaves all its frames flushed and the run not complete
             data = json.loads(summary.read_text())
-            assert data["complete"] is False and 0 < data["frames"] < frames
+            assert data["complete"] is False and 0 < data["frames"] <= frames
             flushed += 1
     assert flushed >= 1, "an interrupted video flushes what it processed"
 
