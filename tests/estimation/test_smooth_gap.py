@@ -43,6 +43,15 @@ def _gap_run(rng, before=10, gap=12):
     return truth, np.array(xs), np.array(Ps), prior, detected, F, Q, model
 
 
+def _smoothed_gap(xs, Ps, prior, detected, model):
+    """smooth_gap over the lost frames of a `_gap_run`, ended by its last frame's update;
+    returns the gap's frame indices, their transitions to the last frame and the means."""
+    gap = np.flatnonzero(~detected)
+    t_end = len(xs) - 1
+    Phi = np.array([model.transition(DT * (t_end - j)) for j in gap])
+    return gap, Phi, smooth_gap(xs[gap], Ps[gap], Phi, prior[0], prior[1], xs[t_end])
+
+
 def test_matches_filterpy_rts_smoother_on_the_gap():
     rng = np.random.default_rng(3)
     truth, xs, Ps, prior, detected, F, Q, model = _gap_run(rng)
@@ -51,10 +60,7 @@ def test_matches_filterpy_rts_smoother_on_the_gap():
     # its smoothed last state is the filtered one, so the gap's smoothed states are exact.
     kf = filterpy_kalman.KalmanFilter(dim_x=6, dim_z=2)
     want, _, _, _ = kf.rts_smoother(xs, Ps, Fs=[F] * n, Qs=[Q] * n)
-    gap = np.flatnonzero(~detected)
-    t_end = n - 1
-    Phi = np.array([model.transition(DT * (t_end - j)) for j in gap])
-    got = smooth_gap(xs[gap], Ps[gap], Phi, prior[0], prior[1], xs[t_end])
+    gap, _, got = _smoothed_gap(xs, Ps, prior, detected, model)
     np.testing.assert_allclose(got, want[gap], rtol=0, atol=1e-8)
     assert np.abs(got - xs[gap]).max() > 0.1   # the gap's states really moved
 
@@ -66,10 +72,8 @@ def test_smoothed_gap_is_consistent_and_closer_to_the_truth():
     nees, err_pred, err_smooth = [], [], []
     for _ in range(300):
         truth, xs, Ps, prior, detected, F, Q, model = _gap_run(rng)
-        gap = np.flatnonzero(~detected)
+        gap, Phi, got = _smoothed_gap(xs, Ps, prior, detected, model)
         t_end = len(xs) - 1
-        Phi = np.array([model.transition(DT * (t_end - j)) for j in gap])
-        got = smooth_gap(xs[gap], Ps[gap], Phi, prior[0], prior[1], xs[t_end])
         # smoothed covariance: P_j - C (P_prior - P_post) C', C = P_j Phi' P_prior^-1
         C = Ps[gap] @ np.swapaxes(Phi, 1, 2) @ np.linalg.inv(prior[1])
         Pst = Ps[gap] - C @ (prior[1] - Ps[t_end]) @ np.swapaxes(C, 1, 2)

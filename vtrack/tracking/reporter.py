@@ -30,18 +30,17 @@ their predicted boxes.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
 from vtrack.estimation.kalman import smooth_gap
-from vtrack.estimation.models import ConstantAcceleration
 from vtrack.tracking.table import TrackTable
 
 ROW_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf")  # conf 1 = detected, < 1 = coasted
 ON_COURSE_IOU = 0.5  # a re-acquisition this close to the prediction confirms the coasted rows
 MIN_INSIDE_SHARE = 0.25  # a coasted row keeps this share of its predicted box in the image
-_MOTION = ConstantAcceleration(1.0)  # the centre filters' transition (its noise is in P)
 
 
 class CoastedRow(NamedTuple):
@@ -60,10 +59,12 @@ class RowReporter:
     MAX_PENDING = 4096  # rows kept for a track not yet confirmed (static clutter is bounded)
 
     def __init__(self, max_coast_seconds: float, width: int, height: int,
-                 smooth: bool = True) -> None:
+                 transition: Callable[[float], np.ndarray] | None = None) -> None:
+        """`transition(dt)`: the centre filters' state transition, which smooths coasted
+        stretches (None: they are reported as predicted)."""
         self.max_coast = max_coast_seconds
         self.width, self.height = width, height
-        self.smooth = smooth
+        self.transition = transition
         self.pending: dict[int, deque[np.ndarray]] = {}
         self.coasted: dict[int, list[CoastedRow]] = {}  # by uid, since its last detection
 
@@ -72,8 +73,9 @@ class RowReporter:
              prior_x: np.ndarray, prior_P: np.ndarray) -> np.ndarray:
         """The rows (R, 7) of ROW_COLUMNS that became final this frame; `boxes` are the
         tracks' boxes clipped to the image; on_course marks the hit tracks whose detection
-        confirms their prediction; (prior_x, prior_P) are the hit tracks' centre states
-        before this frame's update. conf is 1 for a detected row and falls from 0.95 to
+        confirms their prediction; (prior_x, prior_P) are the centre states before this
+        frame's update of the tracks that existed before it (tracks born this frame come
+        after them and have no coasted rows). conf is 1 for a detected row and falls from 0.95 to
         0.05 over the coasting limit."""
         conf = np.where(hit, 1.0,
                         np.clip(1.0 - (t - tracks.hist_t[:, 0]) / (self.max_coast + 1e-9),
@@ -114,7 +116,7 @@ class RowReporter:
                 self.pending.setdefault(uid, deque(maxlen=self.MAX_PENDING)).append(rows[i])
                 if tracks.standing[i]:     # held on purpose, not predicted: not smoothed
                     self.coasted.pop(uid, None)
-                elif self.smooth and not hit[i]:
+                elif self.transition is not None and not hit[i]:
                     self.coasted.setdefault(uid, []).append(CoastedRow(
                         frame, t, tracks.x[i].copy(), tracks.P[i].copy(),
                         tracks.size[i].copy()))
@@ -129,7 +131,7 @@ class RowReporter:
         """Move the coasted rows of `stretch` (in `rows`) onto their smoothed centres, in
         place, where the predicted and the smoothed box both lie inside the image."""
         x = smooth_gap(np.array([c.x for c in stretch]), np.array([c.P for c in stretch]),
-                       np.array([_MOTION.transition(t - c.t) for c in stretch]),
+                       np.array([self.transition(t - c.t) for c in stretch]),
                        x_prior, P_prior, x_post)
         moved = {}
         for c, xs in zip(stretch, x, strict=True):

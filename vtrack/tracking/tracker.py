@@ -71,7 +71,8 @@ class Tracker:
         self.associator = Associator(cfg, width, height)
         self.initiator = Initiator()
         self.confirmer = Confirmer(cfg, fps)
-        self.reporter = RowReporter(cfg.max_coast_seconds, width, height, cfg.smooth_coasted)
+        self.reporter = RowReporter(cfg.max_coast_seconds, width, height,
+                                    self.bank.model.transition if cfg.smooth_coasted else None)
         self.t_prev: float | None = None
 
     def __len__(self) -> int:
@@ -148,10 +149,8 @@ class Tracker:
         shown[a.tracks[whole]] = clip(a.boxes[a.detections][whole], self.width, self.height)
         on_course = np.ones(len(tracks), dtype=bool)
         on_course[a.tracks] = paired_iou(predicted, shown[a.tracks]) >= ON_COURSE_IOU
-        born = slice(len(prior_x), len(tracks))   # new tracks: no prior, never smoothed
         rows = self.reporter.rows(frame, t, tracks, shown, hit, on_course, inside, alive,
-                                  np.concatenate([prior_x, tracks.x[born]]),
-                                  np.concatenate([prior_P, tracks.P[born]]))
+                                  prior_x, prior_P)
         keep = inside & alive
         self.bank.forget(tracks.uid[~keep])
         tracks.keep(keep)
