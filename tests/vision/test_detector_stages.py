@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from test_motion_detector import RECTS, START, Scene, _match
-from vtrack.vision.background import median_image
+from vtrack.vision.background import estimate_background, median_image, mode_image
 from vtrack.vision.detect import DetectorConfig, MotionDetector
 
 
@@ -66,6 +66,90 @@ def test_median_image_is_numpys_rounded_down():
         images = list(rng.integers(0, 256, (n, 24, 32, 3), dtype=np.uint8))
         expected = np.median(np.stack(images), axis=0).astype(np.uint8)
         assert np.array_equal(median_image(images), expected), n
+
+
+def _road() -> np.ndarray:
+    """A 320 x 240 road texture (uint8 BGR, smooth random grey-brown)."""
+    coarse = np.random.default_rng(6).normal(120, 20, (31, 41, 3)).astype(np.float32)
+    return np.clip(cv2.resize(coarse, (320, 240), interpolation=cv2.INTER_CUBIC),
+                   0, 255).astype(np.uint8)
+
+
+def _platoon(n: int) -> tuple[np.ndarray, list[float]]:
+    """Frame n of a lane (rows 100-124 of a 320 x 240 textured road, `_road`) filled with a
+    platoon of 40 px vehicles of random colours, 4-30 px apart, driving right
+    at 4 px per frame: the road shows in about a third of the lane's pixels; and the centres
+    of the vehicles wholly in view."""
+    rng = np.random.default_rng(5)
+    colours = rng.integers(20, 236, (40, 3))
+    starts = np.cumsum(40 + rng.integers(4, 30, 40))
+    img = _road().astype(np.float32)
+    centres = []
+    for colour, start in zip(colours, starts):
+        x = 340 - int(start) + 4 * n
+        if -40 < x < 320:
+            img[100:124, max(x, 0):min(x + 40, 320)] = colour
+            if 0 <= x <= 280:
+                centres.append(x + 20.0)
+    centres.sort()
+    img += np.random.default_rng(n).normal(0, 2, img.shape)
+    return np.clip(img, 0, 255).astype(np.uint8), centres
+
+
+def test_background_under_a_dense_platoon_is_the_road():
+    """Vehicles cover the lane in two thirds of the samples, each time in another colour:
+    their median is a blend of vehicles (detections in the first frame merge neighbours or
+    fall between them), while the most frequent colour (the mode, used where few samples
+    are near the median) is the road, and each vehicle is found on its own from the first
+    frame."""
+    samples = [_platoon(n)[0] for n in range(0, 150, 6)]
+    road = _road()
+    lane = (slice(100, 124), slice(None))
+    blend = np.abs(median_image(samples)[lane].astype(int) - road[lane]).max(axis=2)
+    mode = np.abs(estimate_background(samples, 12, 0.5)[lane].astype(int) - road[lane]).max(axis=2)
+    assert np.mean(blend > 12) > 0.2 and np.mean(mode > 12) < 0.02
+    for support, whole in ((0.5, True), (0.0, False)):
+        det = MotionDetector(DetectorConfig(init_background_support=support), 320, 240)
+        det.initialise(samples)
+        ok = []
+        for n in range(6):
+            img, centres = _platoon(n)
+            d = det.detect(img)
+            lane_dets = np.sort(d.centers[(d.centers[:, 1] > 100) & (d.centers[:, 1] < 124), 0])
+            inside = lane_dets[(lane_dets >= 20) & (lane_dets <= 300)]
+            ok.append(len(inside) == len(centres)
+                      and np.abs(inside - np.array(centres)).max() <= 2.0)
+        assert all(ok) == whole, (support, ok)
+
+
+def test_mode_image_is_the_centre_of_the_largest_group():
+    """Against a direct count per pixel: the sample with the most samples within the
+    tolerance in every channel (the first of equals), and the rounded mean of its group."""
+    rng = np.random.default_rng(2)
+    images = list(rng.integers(0, 256, (9, 6, 7, 3), dtype=np.uint8) // 16 * 16)
+    got = mode_image(images, 20)
+    S = np.stack(images).astype(int)
+    for y in range(6):
+        for x in range(7):
+            p = S[:, y, x]
+            near = np.abs(p[:, None] - p[None, :]).max(axis=2) <= 20
+            centre = int(np.argmax(near.sum(axis=1)))
+            expected = np.floor(p[near[centre]].mean(axis=0) + 0.5)
+            assert np.array_equal(got[y, x], expected), (y, x)
+
+
+def test_a_well_supported_median_is_kept():
+    """Where most samples are near the median (a road that vehicles cross now and then),
+    the estimate is the median itself."""
+    rng = np.random.default_rng(3)
+    road = rng.integers(60, 200, (20, 30, 3), dtype=np.uint8)
+    images = []
+    for k in range(25):
+        img = np.clip(road + rng.normal(0, 2, road.shape), 0, 255).astype(np.uint8)
+        if k % 4 == 0:
+            img[5:12, 3 + k % 20:10 + k % 20] = rng.integers(0, 256, 3)
+        images.append(img)
+    assert np.array_equal(estimate_background(images, 12, 0.5), median_image(images))
 
 
 def test_blob_holding_two_predicted_vehicles_is_split():

@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from vtrack.vision.background import Mog2Background, median_image
+from vtrack.vision.background import Mog2Background, estimate_background
 from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi
 from vtrack.vision.jitter import ShiftTolerance
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
@@ -105,9 +105,19 @@ class DetectorConfig:
                                 "unless the background was estimated from the video")
     init_background_seconds: float = _f(6.0, "estimate the background from frames sampled "
                                              "over the first this many seconds of a file "
-                                             "(their median), so that vehicles in view in "
+                                             "(background.py), so that vehicles in view in "
                                              "the first frame are detected; 0: off")
     init_background_samples: int = _f(25, "frames sampled for that estimate")
+    init_background_tolerance: int = _f(12, "grey levels (every channel) within which a "
+                                            "sample counts as the same colour for that "
+                                            "estimate (background.py)")
+    init_background_support: float = _f(0.0, "for dense traffic: where under this share "
+                                              "of the samples lie within the tolerance of "
+                                              "their median, take their mode (the most "
+                                              "frequent colour: the road between the "
+                                              "vehicles of a platoon) instead; 0.5 for a "
+                                              "carriageway full in the first seconds; 0: "
+                                              "the median everywhere (background.py)")
     stabilise: bool = _f(True, "estimate the camera's sway per frame (similarity transform "
                                "against a reference frame) and warp frames onto it before "
                                "background subtraction; the tracker shifts its tracks by the "
@@ -141,6 +151,8 @@ class DetectorConfig:
             "warmup_frames": self.warmup_frames >= 0,
             "init_background_seconds": self.init_background_seconds >= 0,
             "init_background_samples": self.init_background_samples >= 3,
+            "init_background_tolerance": 0 <= self.init_background_tolerance <= 255,
+            "init_background_support": 0 <= self.init_background_support <= 1,
             "stabilise_still_px": self.stabilise_still_px >= 0,
         }
         for name, ok in checks.items():
@@ -211,9 +223,10 @@ class MotionDetector:
         return self.background.frames
 
     def initialise(self, images: Iterable[np.ndarray]) -> None:
-        """Start the background model from the median of `images` (frames sampled across
-        the first seconds of the video: a vehicle covers a pixel in few of them), aligned
-        onto the stabiliser's reference; detection then starts with the first frame."""
+        """Start the background model from `images` (frames sampled across the first
+        seconds of the video, aligned onto the stabiliser's reference): their median (with
+        `init_background_support`, their mode where few of them are near the median:
+        background.estimate_background); detection then starts with the first frame."""
         samples = []
         for image in images:
             small = self.prepare(image)
@@ -222,10 +235,12 @@ class MotionDetector:
             samples.append(small)
         if len(samples) < 3:
             return
-        median = median_image(samples)
+        cfg = self.cfg
+        background = estimate_background(samples, cfg.init_background_tolerance,
+                                         cfg.init_background_support)
         if self.gain is not None:
-            median = self.gain(median)
-        self.background.initialise(median)
+            background = self.gain(background)
+        self.background.initialise(background)
 
     def detect(self, image: np.ndarray,
                priors: Callable[[np.ndarray], np.ndarray] | None = None) -> Detections:
