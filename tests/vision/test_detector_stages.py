@@ -10,6 +10,7 @@ import numpy as np
 from test_motion_detector import RECTS, START, Scene, _match
 from vtrack.vision.background import estimate_background, median_image, mode_image
 from vtrack.vision.detect import DetectorConfig, MotionDetector
+from vtrack.vision.stabilise import border_edges_kept, invert, transform_boxes
 
 
 def _shaken(scene: Scene, n: int, rng: np.random.Generator) -> tuple[np.ndarray, tuple]:
@@ -284,3 +285,65 @@ def test_an_edge_the_stabiliser_leaves_shifted_is_not_foreground():
     assert len(found[True]) == 47
     assert all(len(w) == 1 and 40 <= w[0] < 50 for w in found[True])
     assert sum(len(w) == 0 for w in found[False]) >= 20     # the 24 shifted frames
+
+
+def _van_scene(frames: int):
+    """A textured road seen by a swaying camera while a checkered van, 300 x 230 px in a
+    320 x 240 picture, drives across it at 5 px per frame: for a while it hides most of the
+    road's features and brings far stronger ones. Yields (frame, the true sway (dx, dy))."""
+    texture = np.random.default_rng(5).normal(0, 14, (30, 40, 3)).astype(np.float32)
+    road = np.float32(90) + cv2.resize(texture, (320, 240))
+    squares = (np.indices((230, 300)) // 10).sum(axis=0) % 2
+    van = np.where(squares[..., None] == 1, 230, 30).astype(np.float32)
+    rng = np.random.default_rng(6)
+    for n in range(frames):
+        img = road.copy()
+        x = -300 + 5 * n
+        if x < 320:
+            a, b = max(x, 0), min(x + 300, 320)
+            if b > a:
+                img[5:235, a:b] = van[:, a - x:b - x]
+        dx, dy = 2.5 * np.sin(0.9 * n), 2.0 * np.sin(0.6 * n)
+        img = cv2.warpAffine(img, np.float32([[1, 0, dx], [0, 1, dy]]), (320, 240),
+                             borderMode=cv2.BORDER_REPLICATE)
+        img += rng.normal(0, 2.0, img.shape).astype(np.float32)
+        yield np.clip(img, 0, 255).astype(np.uint8), (dx, dy)
+
+
+def test_robust_stabiliser_follows_the_camera_not_a_van_that_fills_the_view():
+    """While the van hides most of the road, the default stabiliser loses its reference,
+    takes the next frame -- the van's features -- for it and follows the van: its estimate
+    of the sway runs hundreds of pixels off and never comes back. With `stabilise_robust`
+    only features that follow the camera's last motion count, the reference is the road
+    estimated from the video, and a frame with too few of them keeps the last estimate: the
+    error stays within the sway's own range while the van covers the view and is gone once
+    the road shows again."""
+    errors = {}
+    for robust in (False, True):
+        det = MotionDetector(DetectorConfig(stabilise_robust=robust), 320, 240)
+        det.initialise([f for f, _ in _van_scene(1)] * 3)
+        err = []
+        for img, (dx, dy) in _van_scene(140):
+            det.detect(img)
+            err.append(np.abs(det.stabiliser.M[:, 2] - (dx, dy)).max())
+        errors[robust] = np.array(err)
+    gone = slice(124, None)                  # the van has left the picture
+    assert errors[True].max() < 5.0 and errors[True][gone].max() < 0.3, errors[True]
+    assert errors[True][:20].max() < 0.3     # before it covers the road
+    assert errors[False][gone].min() > 50.0, errors[False][gone]
+
+
+def test_a_blob_cut_by_the_reference_border_stays_on_the_frame_border():
+    """A camera that swayed 3 px right and 2 px down moves the reference's picture by that
+    much: a blob on the reference's left and top border lands 3 and 2 px inside this
+    frame, where the tracker would take it for the whole vehicle. Its edges on the
+    reference's border go back to this frame's; an edge inside the picture keeps its
+    warped place, and one beyond this frame's border is not pulled in."""
+    m = np.array([[1.0, 0.0, 3.0], [0.0, 1.0, 2.0]])
+    ref = np.array([[0.0, 0.0, 40.0, 30.0],       # on the top-left corner
+                    [100.0, 50.0, 20.0, 10.0],    # inside
+                    [300.0, 200.0, 20.0, 40.0]])  # on the right and bottom border
+    kept = border_edges_kept(ref, transform_boxes(m, ref), 320, 240)
+    np.testing.assert_allclose(kept, [[0, 0, 43, 32], [103, 52, 20, 10], [303, 202, 20, 40]])
+    back = border_edges_kept(ref, transform_boxes(invert(m), ref), 320, 240)
+    np.testing.assert_allclose(back, [[-3, -2, 40, 30], [97, 48, 20, 10], [297, 198, 23, 42]])

@@ -50,7 +50,8 @@ from vtrack.vision.jitter import ShiftTolerance
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
 from vtrack.vision.shadows import drop_shadows, textured_shadow
 from vtrack.vision.split import holders, split_blob
-from vtrack.vision.stabilise import IDENTITY, Stabiliser, compose, invert, rescale, transform_boxes
+from vtrack.vision.stabilise import (IDENTITY, Stabiliser, border_edges_kept, compose, invert,
+                                     rescale, transform_boxes)
 
 __all__ = ["DetectorConfig", "Detections", "Foreground", "MotionDetector", "downscale_factor"]
 
@@ -124,6 +125,15 @@ class DetectorConfig:
                                "same motion. Switches itself off on a still camera")
     split_merged: bool = _f(True, "divide a blob that holds the predicted boxes of several "
                                   "tracked vehicles among them (split.py)")
+    stabilise_robust: bool = _f(False, "for views that large vehicles fill: the "
+                                       "stabiliser keeps only features that follow the "
+                                       "camera's last motion, takes them from the "
+                                       "background estimated from the video, and holds "
+                                       "its last estimate for up to 1 s while vehicles "
+                                       "hide them, and a blob cut by the reference's "
+                                       "border stays on this frame's (stabilise.py); "
+                                       "off: features of the first frame, RANSAC over "
+                                       "all of them")
     stabilise_still_px: float = _f(0.5, "a camera whose image corners move less than this "
                                          "(detection pixels) over the first 2 s is still")
 
@@ -212,7 +222,9 @@ class MotionDetector:
                         if cfg.shift_tolerance > 0 and cfg.stabilise else None)
         self.motion = MotionMap() if cfg.min_motion > 0 else None
         self.stabiliser = (Stabiliser(*size, probe_frames=max(1, round(2.0 * fps)),
-                                      still_px=cfg.stabilise_still_px)
+                                      still_px=cfg.stabilise_still_px,
+                                      robust=cfg.stabilise_robust,
+                                      hold_frames=round(fps) if cfg.stabilise_robust else 0)
                            if cfg.stabilise else None)
         self._camera = IDENTITY.copy()   # reference -> current frame, full resolution
         self.foreground: np.ndarray | None = None
@@ -238,6 +250,8 @@ class MotionDetector:
         cfg = self.cfg
         background = estimate_background(samples, cfg.init_background_tolerance,
                                          cfg.init_background_support)
+        if self.stabiliser is not None and cfg.stabilise_robust:
+            self.stabiliser.rebase(background)
         if self.gain is not None:
             background = self.gain(background)
         self.background.initialise(background)
@@ -293,7 +307,9 @@ class MotionDetector:
                                             cfg.min_fill, cfg.min_motion)
         if cfg.split_merged and len(boxes) and len(predicted) >= 2:
             boxes, areas = self._split(boxes, areas, contours, predicted, fg.camera)
-        boxes = transform_boxes(fg.camera, boxes)  # the reference's pixels -> this frame's
+        ref_boxes, boxes = boxes, transform_boxes(fg.camera, boxes)  # -> this frame's pixels
+        if cfg.stabilise_robust:   # the fit follows the camera: the sway is a few pixels
+            boxes = border_edges_kept(ref_boxes, boxes, self.width, self.height)
         return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas, fg.motion)
 
     def _split(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],

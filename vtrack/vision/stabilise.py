@@ -12,6 +12,24 @@ output coordinates stay the same (`reanchored` counts these).
 
 Static cameras pay nothing after the probe: if M stays within `still_px` of the identity at
 the image corners over the first `probe_frames` frames, the stage switches itself off.
+
+`robust` (the detector's `stabilise_robust`, off by default) is for views that large
+vehicles fill. Without it, where vehicles carry most of the reference's features (a side view
+with a van across it, a truck passing under a bridge camera) RANSAC fits the vehicles'
+motion and the estimate runs off with them (on the scene suite's side views 15 and 77 px
+off the true sway on average). With it:
+- each feature's flow is seeded with the last estimate and kept only if it lands within
+  FOLLOW_PX (estimation pixels) of where that estimate puts it: the sway changes little
+  from one frame to the next, a vehicle crossing the feature does not follow it;
+- the reference is the background estimated from the video (`rebase`), whose features lie
+  on the static scene, not the first frame's vehicles;
+- any fit of MIN_INLIERS consistent features counts (vehicles hide most features at times);
+- a lost frame keeps the last transform, for up to `hold_frames` frames, before the
+  current frame becomes the reference;
+- the detector moves a blob's edge that lay on the reference's border onto this frame's
+  (`border_edges_kept`): with the sway right, the two borders are a few pixels apart, and
+  the tracker reads only an edge on the image border as cut. (Without `robust` the estimate
+  can be tens of pixels off on such views, and the move would stretch boxes by as much.)
 """
 
 from __future__ import annotations
@@ -21,6 +39,8 @@ import numpy as np
 
 IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 STILL_WARP_PX = 0.25  # a transform moving no image corner further than this is no motion
+MIN_INLIERS = 12      # fewest RANSAC inliers of a fit
+FOLLOW_PX = 3.0       # robust: how far (estimation px) a feature may land from the last fit
 
 
 def corner_shift(M: np.ndarray, width: int, height: int) -> float:
@@ -60,15 +80,33 @@ def transform_boxes(m: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     return np.hstack([lo, hi - lo])
 
 
+def border_edges_kept(ref_boxes: np.ndarray, boxes: np.ndarray, width: int, height: int
+                      ) -> np.ndarray:
+    """`boxes`, the reference's boxes `ref_boxes` (x, y, w, h) mapped into this frame, with
+    each edge that lay on the reference picture's border moved to this frame's border: the
+    warped picture's edge is the image's, and a vehicle cut there goes on beyond it (the
+    tracker reads an edge on the image border as cut; a sway of a few pixels would
+    otherwise leave it 1-3 px inside)."""
+    if len(boxes) == 0:
+        return boxes
+    size = np.array([width, height], dtype=float)
+    lo, hi = boxes[:, :2].copy(), boxes[:, :2] + boxes[:, 2:]
+    lo = np.where(ref_boxes[:, :2] <= 0.5, np.minimum(lo, 0.0), lo)
+    hi = np.where(ref_boxes[:, :2] + ref_boxes[:, 2:] >= size - 0.5, np.maximum(hi, size), hi)
+    return np.hstack([lo, hi - lo])
+
+
 class Stabiliser:
     """Per frame: (the frame warped onto the reference, M reference -> current frame)."""
 
     def __init__(self, width: int, height: int, probe_frames: int, still_px: float,
-                 est_width: int = 320) -> None:
+                 est_width: int = 320, robust: bool = False, hold_frames: int = 0) -> None:
         self.width, self.height = width, height
         self.s = max(1.0, width / est_width)          # estimation at <= est_width pixels
         self.est_size = (max(1, round(width / self.s)), max(1, round(height / self.s)))
         self.probe_frames, self.still_px = probe_frames, still_px
+        self.robust, self.hold_frames = robust, hold_frames
+        self._held = 0                 # consecutive lost frames held on the last transform
         self.active = True
         self.frames = 0
         self.max_shift = 0.0
@@ -77,6 +115,7 @@ class Stabiliser:
         self._base = IDENTITY.copy()   # the first reference -> the current reference
         self._ref: np.ndarray | None = None
         self._pts: np.ndarray | None = None
+        self._last = IDENTITY.copy()   # the last fit, reference -> frame, estimation px
 
     @property
     def moved(self) -> bool:
@@ -90,35 +129,56 @@ class Stabiliser:
     def set_reference(self, small: np.ndarray) -> None:
         """Make `small` (a frame at the detection resolution) the reference."""
         self._ref = self._grey(small)
+        self._last = IDENTITY.copy()
         pts = cv2.goodFeaturesToTrack(self._ref, 200, 0.01, 10, blockSize=7)
         self._pts = pts if pts is not None else np.zeros((0, 1, 2), np.float32)
 
-    def estimate(self, small: np.ndarray) -> np.ndarray | None:
+    def rebase(self, background: np.ndarray) -> None:
+        """Make `background` (the background estimated from the video, in the reference's
+        pixels) the reference: its features lie on the static scene."""
+        self.set_reference(background)
+
+    def estimate(self, small: np.ndarray, guess: np.ndarray | None = None
+                 ) -> np.ndarray | None:
         """M (2x3, detection pixels) mapping the reference onto `small`, or None when the
-        reference is lost."""
+        reference is lost. `robust`: the features' flows start at `guess` (M in estimation
+        pixels; the last fit when None) and only those landing within FOLLOW_PX of it
+        count."""
         if self._ref is None:
             self.set_reference(small)
             return IDENTITY.copy()
-        if len(self._pts) < 12:
+        if len(self._pts) < MIN_INLIERS:
             return None
         grey = self._grey(small)
-        nxt, status, _ = cv2.calcOpticalFlowPyrLK(self._ref, grey, self._pts, None,
-                                                  winSize=(15, 15), maxLevel=3)
-        ok = status.ravel() == 1
-        if ok.sum() < 12:
+        if self.robust:
+            start = cv2.transform(self._pts, self._last if guess is None else guess)
+            nxt, status, _ = cv2.calcOpticalFlowPyrLK(
+                self._ref, grey, self._pts, start.astype(np.float32), winSize=(15, 15),
+                maxLevel=3, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+            ok = ((status.ravel() == 1)
+                  & (np.abs(nxt - start).reshape(-1, 2).max(axis=1) <= FOLLOW_PX))
+            least = MIN_INLIERS
+        else:
+            nxt, status, _ = cv2.calcOpticalFlowPyrLK(self._ref, grey, self._pts, None,
+                                                      winSize=(15, 15), maxLevel=3)
+            ok = status.ravel() == 1
+            least = max(MIN_INLIERS, 0.25 * len(self._pts))
+        if ok.sum() < MIN_INLIERS:
             return None
         m, inliers = cv2.estimateAffinePartial2D(self._pts[ok], nxt[ok], method=cv2.RANSAC,
                                                  ransacReprojThreshold=1.0)
-        if m is None or inliers.sum() < max(12, 0.25 * len(self._pts)):
+        if m is None or inliers.sum() < least:
             return None
+        if guess is None:
+            self._last = m.copy()
         s = self.s
         m[:, 2] *= s  # estimation pixels -> detection pixels (the linear part is unchanged)
         return m
 
     def align(self, small: np.ndarray) -> np.ndarray:
         """`small` warped onto the reference (the first frame aligned becomes it), without
-        counting it as a frame of the video."""
-        m = self.estimate(small)
+        counting it as a frame of the video (robust: its flows start at the identity)."""
+        m = self.estimate(small, IDENTITY)
         return small if m is None else _warp(small, m)
 
     def __call__(self, small: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -127,6 +187,10 @@ class Stabiliser:
         if not self.active:
             return small, IDENTITY
         m = self.estimate(small)
+        if m is None and self._held < self.hold_frames:
+            self._held += 1          # robust: vehicles hide the features for a while
+            return self._output(small, self.M)
+        self._held = 0
         if m is None:
             # Lost (the view changed too much for the reference's features): this frame
             # becomes the reference, placed where the last estimate put the previous one,
@@ -140,6 +204,9 @@ class Stabiliser:
         self.max_shift = max(self.max_shift, corner_shift(m, self.width, self.height))
         if self.frames >= self.probe_frames and self.max_shift <= self.still_px:
             self.active = False  # a still camera: nothing to compensate
+        return self._output(small, m)
+
+    def _output(self, small: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if corner_shift(m, self.width, self.height) <= STILL_WARP_PX:
             return small, IDENTITY   # below what resampling could represent: no motion
         return _warp(small, m), m
