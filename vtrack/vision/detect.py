@@ -251,7 +251,7 @@ class MotionDetector:
         background = estimate_background(samples, cfg.init_background_tolerance,
                                          cfg.init_background_support)
         if self.stabiliser is not None and cfg.stabilise_robust:
-            self.stabiliser.rebase(background)
+            self.stabiliser.set_reference(background)  # features on the static scene
         if self.gain is not None:
             background = self.gain(background)
         self.background.initialise(background)

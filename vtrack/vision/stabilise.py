@@ -16,13 +16,13 @@ the image corners over the first `probe_frames` frames, the stage switches itsel
 `robust` (the detector's `stabilise_robust`, off by default) is for views that large
 vehicles fill. Without it, where vehicles carry most of the reference's features (a side view
 with a van across it, a truck passing under a bridge camera) RANSAC fits the vehicles'
-motion and the estimate runs off with them (on the scene suite's side views 15 and 77 px
+motion and the estimate runs off with them (on the scene suite's side views 16 and 65 px
 off the true sway on average). With it:
 - each feature's flow is seeded with the last estimate and kept only if it lands within
   FOLLOW_PX (estimation pixels) of where that estimate puts it: the sway changes little
   from one frame to the next, a vehicle crossing the feature does not follow it;
-- the reference is the background estimated from the video (`rebase`), whose features lie
-  on the static scene, not the first frame's vehicles;
+- the reference is the background estimated from the video (the detector passes it to
+  `set_reference`), whose features lie on the static scene, not the first frame's vehicles;
 - any fit of MIN_INLIERS consistent features counts (vehicles hide most features at times);
 - a lost frame keeps the last transform, for up to `hold_frames` frames, before the
   current frame becomes the reference;
@@ -90,7 +90,7 @@ def border_edges_kept(ref_boxes: np.ndarray, boxes: np.ndarray, width: int, heig
     if len(boxes) == 0:
         return boxes
     size = np.array([width, height], dtype=float)
-    lo, hi = boxes[:, :2].copy(), boxes[:, :2] + boxes[:, 2:]
+    lo, hi = boxes[:, :2], boxes[:, :2] + boxes[:, 2:]
     lo = np.where(ref_boxes[:, :2] <= 0.5, np.minimum(lo, 0.0), lo)
     hi = np.where(ref_boxes[:, :2] + ref_boxes[:, 2:] >= size - 0.5, np.maximum(hi, size), hi)
     return np.hstack([lo, hi - lo])
@@ -132,11 +132,6 @@ class Stabiliser:
         self._last = IDENTITY.copy()
         pts = cv2.goodFeaturesToTrack(self._ref, 200, 0.01, 10, blockSize=7)
         self._pts = pts if pts is not None else np.zeros((0, 1, 2), np.float32)
-
-    def rebase(self, background: np.ndarray) -> None:
-        """Make `background` (the background estimated from the video, in the reference's
-        pixels) the reference: its features lie on the static scene."""
-        self.set_reference(background)
 
     def estimate(self, small: np.ndarray, guess: np.ndarray | None = None
                  ) -> np.ndarray | None:
