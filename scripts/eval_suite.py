@@ -156,29 +156,33 @@ def read_detections(path: Path) -> np.ndarray:
             else np.zeros((0, 10)))
 
 
-def run_peer(name: str, detections: Path, fps: float, frames: int, out: Path) -> Path:
-    """Track vtrack's detections with a peer of the `trackers` package; writes MOT rows."""
+def peer_rows(name: str, dets: np.ndarray, frames: int, fps: float) -> np.ndarray:
+    """Track detections (rows of MOT columns: frame, -, x, y, w, h) with a peer of the
+    `trackers` package; its rows (frame, id, x, y, w, h), sorted by frame then id."""
     import supervision as sv
     from trackers import ByteTrackTracker, SORTTracker
 
     tracker = (SORTTracker if name == "sort" else ByteTrackTracker)(frame_rate=fps)
-    dets = read_detections(detections)
     by_frame = {int(f): dets[dets[:, 0] == f] for f in np.unique(dets[:, 0])}
     rows = []
     for n in range(1, frames + 1):
-        d = by_frame.get(n, np.zeros((0, 10)))
+        d = by_frame.get(n, np.zeros((0, 6)))
         xyxy = np.column_stack([d[:, 2], d[:, 3], d[:, 2] + d[:, 4], d[:, 3] + d[:, 5]])
         result = tracker.update(sv.Detections(xyxy=xyxy.reshape(-1, 4).astype(float),
                                               confidence=np.ones(len(d))))
         for (x0, y0, x1, y1), tid in zip(result.xyxy, result.tracker_id, strict=True):
-            if tid is not None and tid >= 0:
+            if tid is not None and tid >= 0 and x1 > x0 and y1 > y0:
                 rows.append((n, int(tid) + 1, x0, y0, x1 - x0, y1 - y0))
     rows.sort(key=lambda r: (r[0], r[1]))
+    return np.array(rows, dtype=float).reshape(-1, 6)
+
+
+def run_peer(name: str, detections: Path, fps: float, frames: int, out: Path) -> Path:
+    """Track vtrack's detections with a peer of the `trackers` package; writes MOT rows."""
     path = out / f"tracks_{name}.csv"
     with path.open("w") as f:
-        for n, tid, x, y, w, h in rows:
-            if w > 0 and h > 0:
-                f.write(f"{n},{tid},{x:.2f},{y:.2f},{w:.2f},{h:.2f},1,-1,-1,-1\n")
+        for n, tid, x, y, w, h in peer_rows(name, read_detections(detections), frames, fps):
+            f.write(f"{int(n)},{int(tid)},{x:.2f},{y:.2f},{w:.2f},{h:.2f},1,-1,-1,-1\n")
     return path
 
 

@@ -1,0 +1,61 @@
+"""The ground truth as detections: a tracker's own ceiling, with the detector taken out.
+
+`oracle_detections` turns ground-truth rows (MOTChallenge, an 11th column of visibility)
+into per-frame detections. It keeps the boxes the scoring counts, optionally with a
+controlled amount of edge noise and random drops. A tracker fed with them loses only what
+is its own.
+
+`unmoved_ignored` marks as ignore regions the rows of a vehicle before it first moves.
+Background subtraction cannot see a vehicle that stands from the first frame, and a
+motion tracker does not confirm one (a static blob is noise or a ghost to it). With this
+marking such vehicles cost it nothing. A tracker that does follow them gains nothing
+either: its rows matched to ignore regions are dropped (mot.drop_ignored).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vtrack.evaluation.mot import MIN_VISIBILITY
+
+
+def oracle_detections(gt: np.ndarray, noise: float = 0.0, drop: float = 0.0,
+                      rng: np.random.Generator | None = None) -> np.ndarray:
+    """Detections (D, 5): frame, x, y, w, h, from ground-truth rows (N, >= 7).
+
+    Keeps the rows the scoring counts (conf != 0, visibility >= MIN_VISIBILITY when
+    given). Each box edge moves by N(0, (noise * sqrt(w h))^2), the sides are kept at
+    1 px or more, then each box is dropped with probability `drop`."""
+    if not (noise >= 0 and 0 <= drop <= 1):
+        raise ValueError("noise must be >= 0 and drop in [0, 1]")
+    rng = rng if rng is not None else np.random.default_rng(0)
+    keep = gt[:, 6] != 0
+    if gt.shape[1] >= 11:
+        keep &= gt[:, 10] >= MIN_VISIBILITY
+    rows = gt[keep]
+    x0, y0 = rows[:, 2], rows[:, 3]
+    x1, y1 = x0 + rows[:, 4], y0 + rows[:, 5]
+    if noise > 0:
+        sd = noise * np.sqrt(rows[:, 4] * rows[:, 5])
+        x0, y0, x1, y1 = (v + rng.standard_normal(len(rows)) * sd for v in (x0, y0, x1, y1))
+    boxes = np.column_stack([rows[:, 0], x0, y0, np.maximum(x1 - x0, 1.0),
+                             np.maximum(y1 - y0, 1.0)])
+    if drop > 0:
+        boxes = boxes[rng.random(len(boxes)) >= drop]
+    return boxes
+
+
+def unmoved_ignored(gt: np.ndarray, motion: float = 0.5) -> np.ndarray:
+    """A copy of ground-truth rows with conf 0 (an ignore region) on each vehicle's rows
+    before its box centre first lies `motion` box scales sqrt(w h) from where it was in
+    its first row."""
+    out = gt.copy()
+    for vid in np.unique(gt[:, 1]):
+        idx = np.flatnonzero(gt[:, 1] == vid)
+        idx = idx[np.argsort(gt[idx, 0])]
+        rows = gt[idx]
+        centre = rows[:, 2:4] + rows[:, 4:6] / 2
+        away = np.hypot(*(centre - centre[0]).T) >= motion * np.sqrt(rows[:, 4] * rows[:, 5])
+        first = int(np.argmax(away)) if away.any() else len(rows)
+        out[idx[:first], 6] = 0
+    return out
