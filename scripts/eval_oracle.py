@@ -40,24 +40,11 @@ from eval_suite import PEERS, SCENES, SynthClip, peer_rows, render  # noqa: E402
 
 from vtrack.app import config  # noqa: E402
 from vtrack.evaluation.mot import evaluate_arrays, read_mot  # noqa: E402
-from vtrack.evaluation.oracle import oracle_detections, unmoved_ignored  # noqa: E402
+from vtrack.evaluation.oracle import (oracle_detections, tracked_rows,  # noqa: E402
+                                      unmoved_ignored)
 from vtrack.tracking.tracker import Tracker  # noqa: E402
 
 METRICS = ("mota", "idf1", "hota", "id_switches", "false_positives", "misses")
-
-
-def run_vtrack(dets: np.ndarray, frames: int, fps: float, width: int, height: int,
-               cfg: config.AppConfig) -> np.ndarray:
-    """vtrack's tracker on per-frame detections; its MOT rows (frame, id, x, y, w, h, ...)."""
-    tracker = Tracker(cfg.tracker, width, height, fps)
-    out = []
-    for n in range(1, frames + 1):
-        d = dets[dets[:, 0] == n, 1:5]
-        ft = tracker.step(n, (n - 1) / fps, d[:, :2] + d[:, 2:] / 2, d)
-        if len(ft.rows):
-            out.append(ft.rows)
-    rows = np.concatenate(out) if out else np.zeros((0, 7))
-    return _mot(rows[:, :6])
 
 
 def _mot_columns(dets: np.ndarray) -> np.ndarray:
@@ -66,15 +53,8 @@ def _mot_columns(dets: np.ndarray) -> np.ndarray:
 
 
 def _mot(rows: np.ndarray) -> np.ndarray:
-    """Rows (frame, id, x, y, w, h) as a 10-column MOT array, sorted, one per (frame, id)
-    (the last emitted wins)."""
-    if len(rows) == 0:
-        return np.zeros((0, 10))
-    _, last = np.unique(rows[::-1, :2], axis=0, return_index=True)
-    rows = rows[::-1][last]
-    rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]
-    extra = np.tile([1.0, -1.0, -1.0, -1.0], (len(rows), 1))
-    return np.hstack([rows, extra])
+    """Rows (frame, id, x, y, w, h) as a 10-column MOT array."""
+    return np.hstack([rows, np.tile([1.0, -1.0, -1.0, -1.0], (len(rows), 1))])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -112,7 +92,8 @@ def main(argv: list[str] | None = None) -> int:
         frames = int(gt[:, 0].max())
         scores = {}
         for name in trackers:
-            rows = (run_vtrack(dets, frames, fps, clip.width, clip.height, cfg)
+            rows = (tracked_rows(Tracker(cfg.tracker, clip.width, clip.height, fps), dets,
+                                 frames, fps)
                     if name == "vtrack" else _mot(peer_rows(name, _mot_columns(dets),
                                                             frames, fps)))
             s = evaluate_arrays(scored, rows)

@@ -5,6 +5,8 @@ into per-frame detections. It keeps the boxes the scoring counts, optionally wit
 controlled amount of edge noise and random drops. A tracker fed with them loses only what
 is its own.
 
+`tracked_rows` runs a tracker with vtrack's `step` interface on them and returns its rows.
+
 `unmoved_ignored` marks as ignore regions the rows of a vehicle before it first moves.
 Background subtraction cannot see a vehicle that stands from the first frame, and a
 motion tracker does not confirm one (a static blob is noise or a ghost to it). With this
@@ -13,6 +15,8 @@ either: its rows matched to ignore regions are dropped (mot.drop_ignored).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 
@@ -59,3 +63,17 @@ def unmoved_ignored(gt: np.ndarray, motion: float = 0.5) -> np.ndarray:
         first = int(np.argmax(away)) if away.any() else len(rows)
         out[idx[:first], 6] = 0
     return out
+
+
+def tracked_rows(tracker: Any, dets: np.ndarray, frames: int, fps: float) -> np.ndarray:
+    """MOT rows (R, 10), sorted by frame then id, of `tracker` (vtrack's Tracker, or any
+    object whose step(frame, t, centres, boxes) returns FrameTracks) run on detections
+    (frame, x, y, w, h) over frames 1..frames at `fps`. A row emitted again for the same
+    (frame, id) replaces the earlier one."""
+    rows: dict[tuple[int, int], np.ndarray] = {}
+    for n in range(1, frames + 1):
+        d = dets[dets[:, 0] == n, 1:5]
+        for r in tracker.step(n, (n - 1) / fps, d[:, :2] + d[:, 2:] / 2, d).rows:
+            rows[int(r[0]), int(r[1])] = r[:6]
+    out = np.array([rows[k] for k in sorted(rows)]).reshape(-1, 6)
+    return np.hstack([out, np.tile([1.0, -1.0, -1.0, -1.0], (len(out), 1))])
