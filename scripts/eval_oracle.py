@@ -40,8 +40,8 @@ from eval_suite import PEERS, SCENES, SynthClip, peer_rows, render  # noqa: E402
 
 from vtrack.app import config  # noqa: E402
 from vtrack.evaluation.mot import evaluate_arrays, read_mot  # noqa: E402
-from vtrack.evaluation.oracle import (oracle_detections, tracked_rows,  # noqa: E402
-                                      unmoved_ignored)
+from vtrack.evaluation.oracle import (mot_array, oracle_detections,  # noqa: E402
+                                      tracked_rows, unmoved_ignored)
 from vtrack.tracking.tracker import Tracker  # noqa: E402
 
 METRICS = ("mota", "idf1", "hota", "id_switches", "false_positives", "misses")
@@ -50,11 +50,6 @@ METRICS = ("mota", "idf1", "hota", "id_switches", "false_positives", "misses")
 def _mot_columns(dets: np.ndarray) -> np.ndarray:
     """Detections (frame, x, y, w, h) as rows of MOT columns (frame, -1, x, y, w, h)."""
     return np.column_stack([dets[:, 0], -np.ones(len(dets)), dets[:, 1:5]])
-
-
-def _mot(rows: np.ndarray) -> np.ndarray:
-    """Rows (frame, id, x, y, w, h) as a 10-column MOT array."""
-    return np.hstack([rows, np.tile([1.0, -1.0, -1.0, -1.0], (len(rows), 1))])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -94,8 +89,8 @@ def main(argv: list[str] | None = None) -> int:
         for name in trackers:
             rows = (tracked_rows(Tracker(cfg.tracker, clip.width, clip.height, fps), dets,
                                  frames, fps)
-                    if name == "vtrack" else _mot(peer_rows(name, _mot_columns(dets),
-                                                            frames, fps)))
+                    if name == "vtrack" else mot_array(peer_rows(name, _mot_columns(dets),
+                                                                 frames, fps)))
             s = evaluate_arrays(scored, rows)
             scores[name] = {k: s[k] for k in METRICS}
         results.append({"clip": clip.name, "scores": scores})

@@ -5,7 +5,8 @@ into per-frame detections. It keeps the boxes the scoring counts, optionally wit
 controlled amount of edge noise and random drops. A tracker fed with them loses only what
 is its own.
 
-`tracked_rows` runs a tracker with vtrack's `step` interface on them and returns its rows.
+`tracked_rows` runs a tracker with vtrack's `step` interface on them and returns its rows
+(`mot_array`: MOTChallenge rows, as read_mot gives them).
 
 `unmoved_ignored` marks as ignore regions the rows of a vehicle before it first moves.
 Background subtraction cannot see a vehicle that stands from the first frame, and a
@@ -75,5 +76,10 @@ def tracked_rows(tracker: Any, dets: np.ndarray, frames: int, fps: float) -> np.
         d = dets[dets[:, 0] == n, 1:5]
         for r in tracker.step(n, (n - 1) / fps, d[:, :2] + d[:, 2:] / 2, d).rows:
             rows[int(r[0]), int(r[1])] = r[:6]
-    out = np.array([rows[k] for k in sorted(rows)]).reshape(-1, 6)
-    return np.hstack([out, np.tile([1.0, -1.0, -1.0, -1.0], (len(out), 1))])
+    return mot_array(np.array([rows[k] for k in sorted(rows)]).reshape(-1, 6))
+
+
+def mot_array(rows: np.ndarray) -> np.ndarray:
+    """Rows (R, 6) of frame, id, x, y, w, h as MOTChallenge rows (R, 10): conf 1, the
+    world coordinates -1."""
+    return np.hstack([rows, np.tile([1.0, -1.0, -1.0, -1.0], (len(rows), 1))])
