@@ -16,6 +16,13 @@ combined scores over the synthetic clips (their counts pooled).
     .venv/bin/python scripts/eval_suite.py                 # the whole suite, 2 workers
     .venv/bin/python scripts/eval_suite.py --json suite.json
     .venv/bin/python scripts/eval_suite.py --quick         # one short clip per preset, 2 real
+    .venv/bin/python scripts/eval_suite.py --without shadows --no-real   # what a nuisance costs
+
+`--without` renders the perspective clips with those nuisances of `vtrack synth` taken out
+and everything else the same. Each nuisance draws from its own random stream, so the same
+vehicles drive the same paths, except without `mix`, `parked` or `inview`, which are inputs
+of the traffic draw: the suite's score without a phenomenon is what handling it perfectly
+would be worth, for vtrack and for the peers.
 
 Rendered synthetic clips are cached (keyed by the simulator's source and the options) under
 --cache, so re-running after a tracker change only tracks. Peers need the `peer` extra
@@ -52,6 +59,7 @@ class SynthClip:
     frames: int = 300
     width: int = 640
     height: int = 360
+    without: tuple[str, ...] = ()   # nuisances taken out (perspective scenes)
 
     @property
     def name(self) -> str:
@@ -86,12 +94,12 @@ class Result:
 
 # ----------------------------------------------------------------------------- clips
 
-def synthetic_clips(scenes: list[str], seeds: list[int], frames: int, large: bool
-                    ) -> list[SynthClip]:
-    clips = [SynthClip(s, seed, frames) for s in scenes for seed in seeds]
+def synthetic_clips(scenes: list[str], seeds: list[int], frames: int, large: bool,
+                    without: tuple[str, ...] = ()) -> list[SynthClip]:
+    clips = [SynthClip(s, seed, frames, without=without) for s in scenes for seed in seeds]
     if large and scenes:
         big = "mast" if "mast" in scenes else scenes[0]
-        clips.append(SynthClip(big, seeds[0] + 100, frames, 1280, 720))
+        clips.append(SynthClip(big, seeds[0] + 100, frames, 1280, 720, without))
     return clips
 
 
@@ -132,6 +140,11 @@ def render(clip: SynthClip, cache: Path) -> Path:
             "--width", str(clip.width), "--height", str(clip.height)]
     if clip.scene != "overhead":
         args += ["--scene", clip.scene]
+        if clip.without:
+            from vtrack.sim.nuisance import NUISANCES
+
+            kept = [n for n in NUISANCES if n not in clip.without]
+            args += ["--nuisance", ",".join(kept) or "none"]
     res = _vtrack(*args)
     if res.returncode != 0:
         raise RuntimeError(f"synth {clip.name}: {res.stderr.strip()}")
@@ -480,6 +493,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true",
                     help="one 150-frame clip per preset and two real clips")
     ap.add_argument("--config", help="a TOML config instead of the defaults")
+    ap.add_argument("--without", default="", metavar="LIST",
+                    help="render the perspective clips without these nuisances of `vtrack "
+                         "synth` (comma-separated: shadows, exposure, shake, ...)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--work", default="/tmp/vtrack-suite/runs", help="run folders")
     ap.add_argument("--cache", default="/tmp/vtrack-suite/cache", help="rendered clips")
@@ -488,12 +504,20 @@ def main(argv: list[str] | None = None) -> int:
 
     scenes = [s for s in args.scenes.split(",") if s]
     seeds = [int(s) for s in args.seeds.split(",") if s]
+    without = tuple(sorted(n for n in args.without.split(",") if n))
+    if without:
+        from vtrack.sim.nuisance import NUISANCES
+
+        unknown = [n for n in without if n not in NUISANCES]
+        if unknown:
+            ap.error(f"--without: unknown nuisance {unknown[0]!r} (one of "
+                     f"{', '.join(NUISANCES)})")
     clips: list[SynthClip | RealClip]
     if args.quick:
-        clips = [SynthClip(s, seeds[0], 150) for s in scenes]
+        clips = [SynthClip(s, seeds[0], 150, without=without) for s in scenes]
         clips += [c for c in real_clips() if c.name.startswith(("bgslibrary", "mrc"))]
     else:
-        clips = list(synthetic_clips(scenes, seeds, args.frames, not args.no_large))
+        clips = list(synthetic_clips(scenes, seeds, args.frames, not args.no_large, without))
         clips += [] if args.no_real else real_clips()
     keys = [k for k in args.only.split(",") if k]
     clips = [c for c in clips if not keys or any(k in c.name for k in keys)]
@@ -509,10 +533,12 @@ def main(argv: list[str] | None = None) -> int:
     summary = summarise(results, trackers)
     print_table(results, trackers, summary)
     print(f"\n{len(results)} clips in {wall:.0f} s wall ({args.workers} workers); "
-          f"vtrack {_git_rev()}, config {args.config or 'default'}")
+          f"vtrack {_git_rev()}, config {args.config or 'default'}"
+          + (f", without {','.join(without)}" if without else ""))
     if args.json:
         Path(args.json).write_text(json.dumps({
             "revision": _git_rev(), "config": args.config or "default",
+            "without": list(without),
             "wall_seconds": wall, "summary": summary,
             "results": [asdict(r) for r in results]}, indent=1))
     return 1 if any(r.error for r in results) else 0
