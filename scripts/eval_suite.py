@@ -44,6 +44,8 @@ from pathlib import Path
 
 import numpy as np
 
+from vtrack.sim.nuisance import NUISANCES
+
 ROOT = Path(__file__).resolve().parents[1]
 VIDEOS = ROOT.parent / "shared" / "videos"
 SCENES = ("overhead", "mast", "side", "junction")
@@ -141,8 +143,6 @@ def render(clip: SynthClip, cache: Path) -> Path:
     if clip.scene != "overhead":
         args += ["--scene", clip.scene]
         if clip.without:
-            from vtrack.sim.nuisance import NUISANCES
-
             kept = [n for n in NUISANCES if n not in clip.without]
             args += ["--nuisance", ",".join(kept) or "none"]
     res = _vtrack(*args)
@@ -505,13 +505,9 @@ def main(argv: list[str] | None = None) -> int:
     scenes = [s for s in args.scenes.split(",") if s]
     seeds = [int(s) for s in args.seeds.split(",") if s]
     without = tuple(sorted(n for n in args.without.split(",") if n))
-    if without:
-        from vtrack.sim.nuisance import NUISANCES
-
-        unknown = [n for n in without if n not in NUISANCES]
-        if unknown:
-            ap.error(f"--without: unknown nuisance {unknown[0]!r} (one of "
-                     f"{', '.join(NUISANCES)})")
+    unknown = [n for n in without if n not in NUISANCES]
+    if unknown:
+        ap.error(f"--without: unknown nuisance {unknown[0]!r} (one of {', '.join(NUISANCES)})")
     clips: list[SynthClip | RealClip]
     if args.quick:
         clips = [SynthClip(s, seeds[0], 150, without=without) for s in scenes]

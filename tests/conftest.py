@@ -28,6 +28,22 @@ RESIDENTIAL = SHARED_VIDEOS / "vehicle_counting_tf_sub-1504614469486_residential
 
 
 @pytest.fixture(scope="session")
+def load_script():
+    """Import a developer script of scripts/ by name (e.g. "eval_suite") as a module."""
+    import importlib.util
+    import sys
+
+    def load(name: str):
+        spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = mod   # dataclasses look their module up there
+        spec.loader.exec_module(mod)
+        return mod
+
+    return load
+
+
+@pytest.fixture(scope="session")
 def synth_video(tmp_path_factory):
     """Render (once) a synthetic clip per seed; returns a function seed -> folder."""
     from vtrack.sim.traffic import render_scene

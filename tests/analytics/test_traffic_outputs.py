@@ -6,7 +6,6 @@ append-only periodic flush."""
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 from collections import Counter
 from pathlib import Path
@@ -15,15 +14,7 @@ import pytest
 
 from vtrack.cli import main
 
-ROOT = Path(__file__).resolve().parents[2]
 FRAMES, FPS = 250, 25.0
-
-
-def _eval_speed():
-    spec = importlib.util.spec_from_file_location("eval_speed", ROOT / "scripts/eval_speed.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _csv(path: Path) -> list[dict]:
@@ -50,7 +41,7 @@ def _check_counts(out: Path, summary: dict, classes: set[str], bin_s: float) -> 
 
 
 def test_calibrated_run_counts_per_class_and_speeds_against_truth(synth_video, overhead_truth,
-                                                                  tmp_path):
+                                                                  tmp_path, load_script):
     src = synth_video(0)
     truth = tmp_path / "truth"
     overhead_truth(0, truth)
@@ -78,7 +69,7 @@ def test_calibrated_run_counts_per_class_and_speeds_against_truth(synth_video, o
     # speed, length and class against the simulator (the real pipeline on a rendered video)
     for name in ("gt.csv",):
         (truth / name).write_bytes((src / name).read_bytes())
-    res = _eval_speed().evaluate(truth, out)
+    res = load_script("eval_speed").evaluate(truth, out)
     print("overhead seed 0:", {k: v for k, v in res.items() if k != "vehicles"})
     assert res["matched"] >= 11
     assert res["speed_error_kmh"]["rmse"] < 3.0

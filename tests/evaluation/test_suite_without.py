@@ -4,8 +4,6 @@ suite's score without it is what handling that phenomenon perfectly would be wor
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,24 +11,14 @@ import pytest
 
 from vtrack.vision.video import VideoReader
 
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _suite():
-    spec = importlib.util.spec_from_file_location("eval_suite", ROOT / "scripts/eval_suite.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod   # its dataclasses look their module up there
-    spec.loader.exec_module(mod)
-    return mod
-
 
 def _frames(video: Path) -> np.ndarray:
     with VideoReader(video) as reader:
         return np.stack([frame.image for frame in reader])
 
 
-def test_without_shadows_keeps_the_vehicles_and_changes_the_pixels(tmp_path):
-    suite = _suite()
+def test_without_shadows_keeps_the_vehicles_and_changes_the_pixels(tmp_path, load_script):
+    suite = load_script("eval_suite")
     base = suite.render(suite.SynthClip("mast", 0, 12), tmp_path)
     bare = suite.render(suite.SynthClip("mast", 0, 12, without=("shadows",)), tmp_path)
     assert base != bare and base.name.startswith("mast-0-") and bare.name.startswith("mast-0-")
@@ -44,8 +32,8 @@ def test_without_shadows_keeps_the_vehicles_and_changes_the_pixels(tmp_path):
     assert b.astype(float)[changed].mean() > a.astype(float)[changed].mean()
 
 
-def test_without_rejects_an_unknown_nuisance(capsys):
+def test_without_rejects_an_unknown_nuisance(capsys, load_script):
     with pytest.raises(SystemExit) as exc:
-        _suite().main(["--without", "fog", "--no-real"])
+        load_script("eval_suite").main(["--without", "fog", "--no-real"])
     assert exc.value.code == 2
     assert "unknown nuisance 'fog'" in capsys.readouterr().err
