@@ -1,5 +1,6 @@
 """The ground truth as detections (vtrack.evaluation.oracle): which rows it keeps, the noise
-and drops it adds, and the ignore marking of vehicles that have not moved yet."""
+and drops it adds, the ignore marking of vehicles that have not moved yet, and the share of the ground truth
+it leaves."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import numpy as np
 import pytest
 
 from vtrack.evaluation.mot import evaluate_arrays
-from vtrack.evaluation.oracle import oracle_detections, unmoved_ignored
+from vtrack.evaluation.oracle import moved_share, oracle_detections, unmoved_ignored
 
 
 def _row(frame: int, vid: int, x: float, y: float, w: float = 20.0, h: float = 10.0,
@@ -72,3 +73,17 @@ def test_a_parked_vehicle_then_costs_a_motion_tracker_nothing() -> None:
     for rows in (tracks, both):
         s = evaluate_arrays(marked, rows)
         assert s["mota"] == pytest.approx(1.0) and s["false_positives"] == 0
+
+
+def test_moved_share_is_the_ceiling_of_a_motion_tracker() -> None:
+    """30 rows of a mover (the first 2 before it has moved 0.5 scales), 30 of a parked car
+    and 5 rows too hidden to score: 28 of 60 scored rows are of a vehicle once moved, and a
+    tracker that follows the mover perfectly scores exactly that MOTA on the full truth."""
+    moving = _mover(1, range(1, 31), 10.0, 5.0)
+    parked = [_row(f, 2, 300.0, 80.0) for f in range(1, 31)]
+    hidden = [_row(f, 3, 500.0, 80.0, vis=0.1) for f in range(1, 6)]
+    gt = np.array(moving + parked + hidden)
+    assert moved_share(gt) == pytest.approx(28 / 60)
+    tracks = np.array([r[:10] for r in moving[2:]])
+    assert evaluate_arrays(gt, tracks)["mota"] == pytest.approx(28 / 60)
+    assert moved_share(gt[:0]) != moved_share(gt[:0])          # nan: nothing scored

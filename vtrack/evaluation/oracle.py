@@ -8,7 +8,9 @@ is its own.
 `tracked_rows` runs a tracker with vtrack's `step` interface on them and returns its rows
 (`mot_array`: MOTChallenge rows, as read_mot gives them).
 
-`unmoved_ignored` marks as ignore regions the rows of a vehicle before it first moves.
+`unmoved_ignored` marks as ignore regions the rows of a vehicle before it first moves;
+`moved_share` is the share of the scored rows it leaves, the ceiling of a motion
+detector's MOTA on the full ground truth.
 Background subtraction cannot see a vehicle that stands from the first frame, and a
 motion tracker does not confirm one (a static blob is noise or a ghost to it). With this
 marking such vehicles cost it nothing. A tracker that does follow them gains nothing
@@ -21,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from vtrack.evaluation.mot import MIN_VISIBILITY
+from vtrack.evaluation.mot import MIN_VISIBILITY, ignore_mask
 
 
 def oracle_detections(gt: np.ndarray, noise: float = 0.0, drop: float = 0.0,
@@ -64,6 +66,17 @@ def unmoved_ignored(gt: np.ndarray, motion: float = 0.5) -> np.ndarray:
         first = int(np.argmax(away)) if away.any() else len(rows)
         out[idx[:first], 6] = 0
     return out
+
+
+def moved_share(gt: np.ndarray, motion: float = 0.5) -> float:
+    """The share of the scored ground-truth rows (mot.ignore_mask) whose vehicle has moved
+    (`unmoved_ignored`). The others stand where the background estimated from the video
+    holds them, so a tracker on background subtraction matches none of them, and its MOTA
+    on the full ground truth is at most this (nan without scored rows)."""
+    scored = ~ignore_mask(gt)
+    if not scored.any():
+        return float("nan")
+    return float(np.mean(~ignore_mask(unmoved_ignored(gt, motion))[scored]))
 
 
 def tracked_rows(tracker: Any, dets: np.ndarray, frames: int, fps: float) -> np.ndarray:
