@@ -23,6 +23,9 @@ off the true sway on average). With it:
   from one frame to the next, a vehicle crossing the feature does not follow it;
 - the reference is the background estimated from the video (the detector passes it to
   `set_reference`), whose features lie on the static scene, not the first frame's vehicles;
+  the frames sampled for that background, seconds apart, are each aligned onto the first
+  by the fit seeded at the identity or, where the unseeded fit disagrees with it, by the
+  one whose warp matches the first frame better (`align`);
 - any fit of MIN_INLIERS consistent features counts (vehicles hide most features at times);
 - a lost frame keeps the last transform, for up to `hold_frames` frames, before the
   current frame becomes the reference;
@@ -41,6 +44,7 @@ IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 STILL_WARP_PX = 0.25  # a transform moving no image corner further than this is no motion
 MIN_INLIERS = 12      # fewest RANSAC inliers of a fit
 FOLLOW_PX = 3.0       # robust: how far (estimation px) a feature may land from the last fit
+AGREE_PX = 0.5        # robust align: two fits this close (estimation px) agree
 
 
 def corner_shift(M: np.ndarray, width: int, height: int) -> float:
@@ -145,36 +149,75 @@ class Stabiliser:
         if len(self._pts) < MIN_INLIERS:
             return None
         grey = self._grey(small)
-        if self.robust:
-            start = cv2.transform(self._pts, self._last if guess is None else guess)
+        start = (cv2.transform(self._pts, self._last if guess is None else guess)
+                 if self.robust else None)
+        m = self._fit(grey, start)
+        if m is None:
+            return None
+        if guess is None:
+            self._last = m.copy()
+        m[:, 2] *= self.s  # estimation pixels -> detection pixels (the linear part is unchanged)
+        return m
+
+    def _fit(self, grey: np.ndarray, start: np.ndarray | None) -> np.ndarray | None:
+        """The similarity transform (estimation pixels) of the reference's features tracked
+        into `grey` by Lucas-Kanade and RANSAC, or None. With `start` (the features' seeded
+        places) only features landing within FOLLOW_PX of it count and any MIN_INLIERS
+        consistent ones make a fit; unseeded, a quarter of the features must agree."""
+        if start is None:
+            nxt, status, _ = cv2.calcOpticalFlowPyrLK(self._ref, grey, self._pts, None,
+                                                      winSize=(15, 15), maxLevel=3)
+            ok = status.ravel() == 1
+            least = max(MIN_INLIERS, 0.25 * len(self._pts))
+        else:
             nxt, status, _ = cv2.calcOpticalFlowPyrLK(
                 self._ref, grey, self._pts, start.astype(np.float32), winSize=(15, 15),
                 maxLevel=3, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
             ok = ((status.ravel() == 1)
                   & (np.abs(nxt - start).reshape(-1, 2).max(axis=1) <= FOLLOW_PX))
             least = MIN_INLIERS
-        else:
-            nxt, status, _ = cv2.calcOpticalFlowPyrLK(self._ref, grey, self._pts, None,
-                                                      winSize=(15, 15), maxLevel=3)
-            ok = status.ravel() == 1
-            least = max(MIN_INLIERS, 0.25 * len(self._pts))
         if ok.sum() < MIN_INLIERS:
             return None
         m, inliers = cv2.estimateAffinePartial2D(self._pts[ok], nxt[ok], method=cv2.RANSAC,
                                                  ransacReprojThreshold=1.0)
-        if m is None or inliers.sum() < least:
-            return None
-        if guess is None:
-            self._last = m.copy()
-        s = self.s
-        m[:, 2] *= s  # estimation pixels -> detection pixels (the linear part is unchanged)
-        return m
+        return None if m is None or inliers.sum() < least else m
+
+    def _residual(self, grey: np.ndarray, m: np.ndarray) -> float:
+        """Median absolute grey difference between the reference and `grey` warped back
+        onto it by m (estimation pixels): small where m is the camera's motion, whatever
+        the vehicles do."""
+        h, w = grey.shape
+        back = cv2.warpAffine(grey, m, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                              borderMode=cv2.BORDER_REPLICATE)
+        return float(np.median(cv2.absdiff(back, self._ref)))
 
     def align(self, small: np.ndarray) -> np.ndarray:
         """`small` warped onto the reference (the first frame aligned becomes it), without
-        counting it as a frame of the video (robust: its flows start at the identity)."""
-        m = self.estimate(small, IDENTITY)
-        return small if m is None else _warp(small, m)
+        counting it as a frame of the video.
+
+        Robust: the frames sampled for the background lie seconds apart, so the camera may
+        have moved further than FOLLOW_PX from the reference; of the fit seeded at the
+        identity and the unseeded one, the seeded where they agree (within AGREE_PX), else
+        the one whose warp matches the reference better (seeded alone, a frame the camera
+        had moved far from went into the background unaligned)."""
+        if not self.robust or self._ref is None:
+            m = self.estimate(small, IDENTITY)
+            return small if m is None else _warp(small, m)
+        if len(self._pts) < MIN_INLIERS:
+            return small
+        grey = self._grey(small)
+        seeded = self._fit(grey, cv2.transform(self._pts, IDENTITY))
+        plain = self._fit(grey, None)
+        if seeded is None or plain is None:
+            m = plain if seeded is None else seeded
+        elif np.abs(seeded - plain).max() < AGREE_PX:
+            m = seeded
+        else:
+            m = min((seeded, plain), key=lambda f: self._residual(grey, f))
+        if m is None:
+            return small
+        m[:, 2] *= self.s
+        return _warp(small, m)
 
     def __call__(self, small: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(small warped onto the reference, M reference -> current) for the next frame."""
