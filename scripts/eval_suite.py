@@ -253,7 +253,7 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
             truth = count(src / "gt.csv", lines)
             res.hand = [[label, [f, f], [b, b]] for (label, _), (f, b) in zip(named, truth)]
             moved_gt = unmoved_ignored(gt)
-            res.detector["moved_share"] = moved_share(gt)
+            res.detector["moved_share"] = moved_share(gt, moved_gt)
         for name, path in outputs.items():
             if synthetic:
                 res.files |= {"gt": str(src / "gt.csv"), name: str(path)}

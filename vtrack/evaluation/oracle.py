@@ -68,15 +68,16 @@ def unmoved_ignored(gt: np.ndarray, motion: float = 0.5) -> np.ndarray:
     return out
 
 
-def moved_share(gt: np.ndarray, motion: float = 0.5) -> float:
-    """The share of the scored ground-truth rows (mot.ignore_mask) whose vehicle has moved
-    (`unmoved_ignored`). The others stand where the background estimated from the video
-    holds them, so a tracker on background subtraction matches none of them, and its MOTA
-    on the full ground truth is at most this (nan without scored rows)."""
+def moved_share(gt: np.ndarray, marked: np.ndarray) -> float:
+    """The share of the scored ground-truth rows (mot.ignore_mask) that `marked`, the same
+    rows marked by `unmoved_ignored`, still scores: those whose vehicle has moved. The
+    others stand where the background estimated from the video holds them, so a tracker on
+    background subtraction matches none of them, and its MOTA on the full ground truth is
+    at most this (nan without scored rows)."""
     scored = ~ignore_mask(gt)
     if not scored.any():
         return float("nan")
-    return float(np.mean(~ignore_mask(unmoved_ignored(gt, motion))[scored]))
+    return float(np.mean(~ignore_mask(marked)[scored]))
 
 
 def tracked_rows(tracker: Any, dets: np.ndarray, frames: int, fps: float) -> np.ndarray:

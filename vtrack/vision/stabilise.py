@@ -186,10 +186,7 @@ class Stabiliser:
         """Median absolute grey difference between the reference and `grey` warped back
         onto it by m (estimation pixels): small where m is the camera's motion, whatever
         the vehicles do."""
-        h, w = grey.shape
-        back = cv2.warpAffine(grey, m, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                              borderMode=cv2.BORDER_REPLICATE)
-        return float(np.median(cv2.absdiff(back, self._ref)))
+        return float(np.median(cv2.absdiff(_resample(grey, m), self._ref)))
 
     def align(self, small: np.ndarray) -> np.ndarray:
         """`small` warped onto the reference (the first frame aligned becomes it), without
@@ -206,7 +203,7 @@ class Stabiliser:
         if len(self._pts) < MIN_INLIERS:
             return small
         grey = self._grey(small)
-        seeded = self._fit(grey, cv2.transform(self._pts, IDENTITY))
+        seeded = self._fit(grey, self._pts)       # seeded at the identity
         plain = self._fit(grey, None)
         if seeded is None or plain is None:
             m = plain if seeded is None else seeded
@@ -254,7 +251,11 @@ def _warp(small: np.ndarray, m: np.ndarray) -> np.ndarray:
     """`small` resampled onto the reference by M (reference -> small); unchanged when M
     moves no corner by more than a quarter pixel (resampling blurs more than that moves)."""
     h, w = small.shape[:2]
-    if corner_shift(m, w, h) <= STILL_WARP_PX:
-        return small
-    return cv2.warpAffine(small, m, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+    return small if corner_shift(m, w, h) <= STILL_WARP_PX else _resample(small, m)
+
+
+def _resample(image: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """`image` resampled onto the reference by M (reference -> image), bilinear."""
+    h, w = image.shape[:2]
+    return cv2.warpAffine(image, m, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                           borderMode=cv2.BORDER_REPLICATE)
