@@ -65,6 +65,27 @@ def test_max_frames_stops_early(clip):
         VideoReader(clip, max_frames=0)
 
 
+def test_keep_hands_over_only_the_numbered_frames_with_their_numbers_and_times(clip):
+    keep = [3, 1, 17, 40, 17]   # unsorted, repeated: each frame once, in order
+    with VideoReader(clip, keep=keep) as reader:
+        frames = list(reader)
+    assert [f.index for f in frames] == [1, 3, 17, 40]
+    assert [float(f.image.mean()) for f in frames] == pytest.approx([5, 15, 85, 200], abs=2)
+    assert [f.time for f in frames] == pytest.approx([0, 2 / FPS, 16 / FPS, 39 / FPS],
+                                                     abs=1e-3)
+    # The same images as a full read; a number past the end ends the read there.
+    with VideoReader(clip) as reader:
+        full = {f.index: f.image for f in reader}
+    with VideoReader(clip, keep=[5, 30, N_FRAMES + 10]) as reader:
+        tail = list(reader)
+    assert [f.index for f in tail] == [5, 30]
+    assert all(np.array_equal(f.image, full[f.index]) for f in tail)
+    with VideoReader(clip, keep=[2]) as reader:   # a first frame not kept: skipped
+        assert [f.time for f in reader] == pytest.approx([1 / FPS], abs=1e-3)
+    with pytest.raises(ValueError, match="keep"):
+        VideoReader(clip, keep=[0, 3])
+
+
 def test_frame_clock_falls_back_on_bogus_positions():
     clock = FrameClock(60.0)
     # An AVI as OpenCV reports it: two frames ahead, 0 after the last frame.
@@ -76,6 +97,9 @@ def test_frame_clock_falls_back_on_bogus_positions():
     assert np.diff(times) == pytest.approx([0.04] * 5)
     clock = FrameClock(25.0)  # a genuine dropped frame (2 periods) is kept
     assert [clock(p) for p in (0.0, 40.0, 120.0)] == pytest.approx([0, 0.04, 0.12])
+    clock = FrameClock(25.0)  # frames skipped on purpose: bounds and fall-back scale
+    assert [clock(p, s) for p, s in ((80.0, 3), (320.0, 6), (0.0, 6), (1e9, 6))] == \
+        pytest.approx([0.08, 0.32, 0.56, 0.80])
 
 
 @pytest.mark.skipif(not HIGHWAY.exists(), reason="real clip not available")

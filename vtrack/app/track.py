@@ -187,8 +187,9 @@ class TrackJob:
 
     def _background_samples(self) -> Iterator[Any]:
         """Frames sampled evenly over the first `init_background_seconds` of a video file
-        (a second, supervised read of its start), for the detector's background. A file
-        that fails here gives what was read: the main read reports the failure."""
+        (a second, supervised read of its start that hands over only the sampled frames),
+        for the detector's background. A file that fails here gives what was read: the
+        main read reports the failure."""
         from vtrack.vision.video import VideoReader
 
         cfg = self.cfg.detector
@@ -201,11 +202,10 @@ class TrackJob:
             return
         stride = n / cfg.init_background_samples
         wanted = {1 + int(k * stride) for k in range(cfg.init_background_samples)}
-        with VideoReader(self.source, max_frames=n) as reader:
+        with VideoReader(self.source, keep=wanted) as reader:
             try:
                 for frame in reader:
-                    if frame.index in wanted:
-                        yield frame.image
+                    yield frame.image
             except InputError:
                 return
 

@@ -43,7 +43,7 @@ import sys
 import tempfile
 import time
 import weakref
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from multiprocessing.reduction import recv_handle, send_handle
@@ -95,7 +95,7 @@ class VideoInfo:
 class Frame:
     """One decoded frame."""
 
-    index: int         # 1-based: the n-th frame handed to the caller
+    index: int         # 1-based: the frame's number in the source (see VideoReader `keep`)
     time: float        # seconds since the first frame (see FrameClock, LiveClock)
     image: np.ndarray  # HxWx3 uint8 BGR, owned by the caller
 
@@ -111,7 +111,9 @@ class FrameClock:
     t_1 = 0 and t_n = t_{n-1} + dt with dt = pos_n - pos_{n-1} when 0.2 T <= dt <= 5 T
     (T = 1 / fps), else dt = T. Only steps are used, so a constant offset (OpenCV reports
     some AVIs two frames ahead) is harmless, and a bogus position (0 after the last frame
-    of an AVI, NaN) costs one nominal step instead of a jump.
+    of an AVI, NaN) costs one nominal step instead of a jump. A caller that skips frames
+    passes `steps`, the frames since the last call (the first call: the frame's number):
+    the bounds and the nominal step scale with it.
     """
 
     def __init__(self, fps: float) -> None:
@@ -119,14 +121,14 @@ class FrameClock:
         self._pos: float | None = None
         self._time: float | None = None
 
-    def __call__(self, pos_ms: float) -> float:
+    def __call__(self, pos_ms: float, steps: int = 1) -> float:
         pos = pos_ms / 1000.0
         if self._time is None:
-            self._time = 0.0
+            self._time = (steps - 1) * self.period
         else:
             dt = pos - self._pos if self._pos is not None else math.nan
-            ok = math.isfinite(dt) and 0.2 * self.period <= dt <= 5 * self.period
-            self._time += dt if ok else self.period
+            ok = math.isfinite(dt) and 0.2 * self.period * steps <= dt <= 5 * self.period * steps
+            self._time += dt if ok else steps * self.period
         self._pos = pos if math.isfinite(pos) else None
         return self._time
 
@@ -231,6 +233,7 @@ class _Job:
     target: str | int                 # path, address or camera index
     max_frames: int | None
     reconnect_seconds: float | None   # None: a file, read at the caller's pace
+    keep: tuple[int, ...] | None = None   # a file: hand over only these frames (sorted)
 
 
 def _decoder_main(fd: int) -> None:
@@ -336,23 +339,34 @@ def _decode(conn: Connection, job: _Job, abort_after: int | None) -> None:
     os.close(ring_fd)
     slots = np.frombuffer(ring, np.uint8).reshape(RING_SLOTS, height, width, 3)
     if job.reconnect_seconds is None:
-        _stream_file(conn, cap, first, slots, job.max_frames, abort_after)
+        _stream_file(conn, cap, first, slots, job.max_frames, abort_after, job.keep)
     else:
         _stream_live(conn, cap, first, slots[:LIVE_SLOTS], job, abort_after)
 
 
 def _stream_file(conn: Connection, cap: cv2.VideoCapture, first: np.ndarray,
-                 slots: np.ndarray, max_frames: int | None, abort_after: int | None) -> None:
-    """Every frame in order; waits for a free slot (the caller sets the pace)."""
+                 slots: np.ndarray, max_frames: int | None, abort_after: int | None,
+                 keep: tuple[int, ...] | None = None) -> None:
+    """Every frame in order, or only the frames numbered in `keep` (the others are decoded
+    but neither converted nor handed over); waits for a free slot (the caller sets the
+    pace)."""
     free = list(range(len(slots)))
-    sent = 0
+    wanted, last = (None, 0) if keep is None else (set(keep), max(keep))
+    sent = number = 0   # frames handed over, frames decoded
     while max_frames is None or sent < max_frames:
+        number += 1
+        if wanted is not None and number not in wanted:
+            if number > last:
+                break
+            if number > 1 and not cap.grab():
+                break
+            continue
         if sent == abort_after:
             _abort()
         if not free:
             free.append(conn.recv())
         k = free.pop()
-        if sent == 0:
+        if number == 1:
             slots[k] = first
         else:
             ok, image = cap.read(slots[k])
@@ -451,10 +465,13 @@ class VideoReader:
     `reconnect_seconds`, and (after yielding the frames decoded so far) when the decoder
     dies or a live source is lost. A file that merely ends early just ends the iteration
     (`frames_read`). `dropped_frames` and `reconnects` count what a live source lost.
+    `keep` (files only): hand over only the frames with these numbers (1-based; the child
+    still decodes the others, to stay exact on any codec, but skips their conversion and
+    hand-over), each with its number as `index`.
     """
 
     def __init__(self, source: str | os.PathLike | Source, max_frames: int | None = None,
-                 reconnect_seconds: float = 30.0) -> None:
+                 reconnect_seconds: float = 30.0, keep: Iterable[int] | None = None) -> None:
         self.source = source if isinstance(source, Source) else parse_source(source)
         self.path = self.source.spec
         if max_frames is not None and max_frames < 1:
@@ -463,6 +480,10 @@ class VideoReader:
             raise InputError(f"reconnect seconds must be >= 0 (got {reconnect_seconds})")
         if not self.source.live:
             check_file(self.path)
+        self._keep = None if keep is None else tuple(sorted(set(keep)))
+        if self._keep is not None and (self.source.live or not self._keep
+                                       or self._keep[0] < 1):
+            raise ValueError("keep: frame numbers >= 1 of a file")
         self.frames_read = 0
         self.dropped_frames = 0
         self.reconnects = 0
@@ -476,7 +497,7 @@ class VideoReader:
         try:
             with contextlib.suppress(OSError):  # a child dead at start-up is reported below
                 self._conn.send(_Job(self.source.target, max_frames,
-                                     reconnect_seconds if live else None))
+                                     reconnect_seconds if live else None, self._keep))
             self.info = self._handshake()
             self._clock = LiveClock(self.info.fps) if live else FrameClock(self.info.fps)
             self._pending = self._check(self._receive())  # a crash before frame 1 fails here
@@ -549,6 +570,7 @@ class VideoReader:
         raise InputError(f"{self.path}: {what}{where}")
 
     def __iter__(self) -> Iterator[Frame]:
+        previous = 0   # the number of the last frame handed over
         while not self._done:
             msg = self._pending or self._check(self._receive())
             self._pending = None
@@ -560,12 +582,14 @@ class VideoReader:
             with contextlib.suppress(OSError):  # the child may already have finished
                 self._conn.send(slot)
             self.frames_read += 1
+            number = self.frames_read if self._keep is None else self._keep[self.frames_read - 1]
             if self.source.live:
                 self.reconnects = reconnects
                 t = self._clock(pos_ms, wall_s, reconnects)
             else:
-                t = self._clock(pos_ms)
-            yield Frame(self.frames_read, t, image)
+                t = self._clock(pos_ms, number - previous)
+            previous = number
+            yield Frame(number, t, image)
 
     def _copy_slot(self, slot: int) -> np.ndarray:
         """A copy of one ring slot (the view is temporary, so the ring can always be freed)."""
