@@ -182,3 +182,56 @@ def test_unknown_config_key_is_rejected(synth_video, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "max_coast" in err and err.startswith("error: ")
     assert not out.exists()
+
+
+class _Recorder:
+    """A detector whose `segment` records the thread and order it runs in."""
+
+    def __init__(self, fail_at: int | None = None) -> None:
+        self.calls: list[tuple[int, str]] = []
+        self.fail_at = fail_at
+
+    def segment(self, image):
+        import threading
+
+        if image == self.fail_at:
+            raise RuntimeError(f"segment failed on {image}")
+        self.calls.append((image, threading.current_thread().name))
+        return -image
+
+
+def _frames(n: int, fail_after: int | None = None):
+    from types import SimpleNamespace
+
+    from vtrack.errors import InputError
+
+    for k in range(1, n + 1):
+        yield SimpleNamespace(index=k, image=k)
+        if k == fail_after:
+            raise InputError("source lost after frame %d" % k)
+
+
+def test_segmented_runs_each_frame_ahead_in_a_worker_in_order():
+    from vtrack.app.track import segmented
+
+    det = _Recorder()
+    out = [(f.index, fg) for f, fg in segmented(_frames(6), det)]
+    assert out == [(k, -k) for k in range(1, 7)]
+    assert [k for k, _ in det.calls] == list(range(1, 7))
+    assert all(name.startswith("vtrack-segment") for _, name in det.calls)
+
+
+def test_segmented_gives_the_frame_in_hand_before_a_source_error():
+    from vtrack.app.track import segmented
+    from vtrack.errors import InputError
+
+    got = []
+    with pytest.raises(InputError, match="after frame 4"):
+        for f, fg in segmented(_frames(9, fail_after=4), _Recorder()):
+            got.append((f.index, fg))
+    assert got == [(k, -k) for k in range(1, 5)]
+    got.clear()   # a detector failure reaches the caller at its frame
+    with pytest.raises(RuntimeError, match="failed on 3"):
+        for f, _ in segmented(_frames(9), _Recorder(fail_at=3)):
+            got.append(f.index)
+    assert got == [1, 2]

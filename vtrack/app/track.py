@@ -10,9 +10,11 @@ a decoder failure or a live source that is lost, what was processed is flushed w
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -135,31 +137,32 @@ class TrackJob:
         ends = TrackEnds()
         next_flush = 0.0   # the first frame is flushed at once
         t0 = time.perf_counter()
-        for frame in self.reader:
-            # The tracker predicts once the detector knows the camera's motion, so that
-            # blobs holding several predicted vehicles can be divided among them.
-            fg = detector.segment(frame.image)
-            dets = detector.locate(fg, lambda motion: tracker.predict(frame.time, motion))
-            ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes)
-            self.frames = frame.index
-            if self.detections is not None:
-                self.detections.add(frame.index, dets.boxes)
-            times.add(frame.index, frame.time)
-            tf = TrackedFrame(frame.index, frame.time, ft, ends.update(ft), times)
-            for sink in self.sinks:
-                sink.frame(tf)
-            self.trails.update(tf)
-            if self.opts.save_frames or writer is not None:
-                self._annotate(frame, ft, dets, writer)
-            if logger is not None:
-                logger.log_frame(frame, dets, ft, fg.mask)
-                logger.log_trails(self.trails.paths)
-            self.elapsed = time.perf_counter() - t0
-            if bar is not None:
-                bar.update(1)
-            if time.monotonic() >= next_flush:
-                self._flush()
-                next_flush = time.monotonic() + self.opts.flush_seconds
+        # closing: the worker stops with the loop, also when the loop body raises
+        with contextlib.closing(segmented(self.reader, detector)) as frames:
+            for frame, fg in frames:
+                # The tracker predicts once the detector knows the camera's motion, so that
+                # blobs holding several predicted vehicles can be divided among them.
+                dets = detector.locate(fg, lambda motion: tracker.predict(frame.time, motion))
+                ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes)
+                self.frames = frame.index
+                if self.detections is not None:
+                    self.detections.add(frame.index, dets.boxes)
+                times.add(frame.index, frame.time)
+                tf = TrackedFrame(frame.index, frame.time, ft, ends.update(ft), times)
+                for sink in self.sinks:
+                    sink.frame(tf)
+                self.trails.update(tf)
+                if self.opts.save_frames or writer is not None:
+                    self._annotate(frame, ft, dets, writer)
+                if logger is not None:
+                    logger.log_frame(frame, dets, ft, fg.mask)
+                    logger.log_trails(self.trails.paths)
+                self.elapsed = time.perf_counter() - t0
+                if bar is not None:
+                    bar.update(1)
+                if time.monotonic() >= next_flush:
+                    self._flush()
+                    next_flush = time.monotonic() + self.opts.flush_seconds
 
     def _finish(self, parts: list[Any]) -> dict[str, Any]:
         """Stop the decoder, close the video and recording, keep the decoder's log, flush
@@ -294,6 +297,29 @@ class TrackJob:
             summary["error"] = self.error
         write_json(self.out / "summary.json", summary)
         return summary
+
+
+def segmented(frames: Iterable[Any], detector: Any) -> Iterator[tuple[Any, Any]]:
+    """(frame, detector.segment(frame.image)) for each frame, in order. The image stages
+    of a frame run in a worker thread while the caller handles the frame before it (they
+    need no track state; OpenCV releases the GIL): one frame of latency, the same results.
+    A source that fails after some frames (InputError) still gives the frame in hand
+    before the error is raised."""
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtrack-segment") as pool:
+        pending: tuple[Any, Future] | None = None
+        failure: InputError | None = None
+        try:
+            for frame in frames:
+                ahead = (frame, pool.submit(detector.segment, frame.image))
+                if pending is not None:
+                    yield pending[0], pending[1].result()
+                pending = ahead
+        except InputError as exc:
+            failure = exc
+        if pending is not None:
+            yield pending[0], pending[1].result()
+        if failure is not None:
+            raise failure
 
 
 def track_video(video: str | Path, out_dir: str | Path, cfg: AppConfig,
