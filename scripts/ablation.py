@@ -33,6 +33,8 @@ ABLATIONS = {
                            "[detector]\nshift_tolerance = 0.0\n"),
     "no-split": ("merged blobs divided among predicted boxes",
                  "[detector]\nsplit_merged = false\n"),
+    "no-gap-labels": ("the gap between two pieces read with MOG2's raw labels",
+                      "[tracker]\ngap_labels = false\n"),
     "no-standing": ("standing vehicles held in place", "[tracker]\nstand_speed = 0.0\n"),
     "no-scale-field": ("the scene's scale field (growth predicted from motion)",
                        "[tracker]\nscale_field = false\n"),

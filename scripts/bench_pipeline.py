@@ -104,7 +104,7 @@ def stage_costs(video: Path, cfg: config.AppConfig, frames: int) -> tuple[StageT
     with reader:
         for frame in reader:
             dets = det.detect(frame.image, lambda m, t=frame.time: predict(t, m))
-            update(frame.index, frame.time, dets.centers, dets.boxes)
+            update(frame.index, frame.time, dets.centers, dets.boxes, dets.changed)
             n += 1
     return times, n
 

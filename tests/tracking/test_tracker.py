@@ -218,11 +218,132 @@ def _behind_a_pole(t):
     return [(a, 170, b - a, 20) for a, b in pieces]
 
 
-def test_occluder_pieces_stay_one_vehicle():
-    states = _run_boxes(_behind_a_pole, frames=75)
+def _road(boxes):
+    """A changed map (vision/changed.py) that sees road everywhere: no pixel changed."""
+    return np.zeros(len(boxes))
+
+
+def _body(boxes):
+    """A changed map that sees every pixel changed: MOG2 labelled the gap foreground or
+    shadow, the body of one vehicle."""
+    return np.ones(len(boxes))
+
+
+def _run_changed(boxes_at, frames, changed, noise=0.3, seed=0):
+    """As _run_boxes, with the detector's changed map given to the tracker."""
+    rng = np.random.default_rng(seed)
+    tr = Tracker(TrackerConfig(), W, H)
+    out = []
+    for n in range(1, frames + 1):
+        t = (n - 1) / FPS
+        b = np.array(boxes_at(t), dtype=float).reshape(-1, 4)
+        b[:, :2] += rng.normal(0, noise, (len(b), 2))
+        out.append(tr.step(n, t, b[:, :2] + b[:, 2:] / 2, b, changed=changed))
+    return out
+
+
+@pytest.mark.parametrize("changed", [None, _road])
+def test_occluder_pieces_stay_one_vehicle(changed):
+    """The pole is background, so with a changed map its gap reads as road; it stays put
+    while the car moves, which is what an occluder does."""
+    states = _run_changed(_behind_a_pole, 75, changed, noise=0.5)
     ids = set().union(*(s.ids.tolist() for s in states))
     assert ids == {1}
     assert len(states[-1].ids) == 1
+
+
+def _tandem(t):
+    """Two 40 x 20 cars one behind the other at 120 px/s, 8 px apart: one blob until
+    t = 1.0 s (frame 26), then two pieces."""
+    front = 200 + 120 * t
+    if t < 1.0:
+        return [(front - 48, 170, 88, 20)]
+    return [(front - 48, 170, 40, 20), (front, 170, 40, 20)]
+
+
+def test_a_gap_of_road_that_moves_with_the_track_splits_it_on_its_second_frame():
+    """Without the changed map the gap's motion must add up to `split_evidence` box scales
+    (three frames here); a gap that MOG2 left unlabelled is road between two vehicles, and
+    on its second frame it has moved with them."""
+    first = 26
+    width = {}
+    for name, changed in (("motion", None), ("road", _road)):
+        states = _run_changed(_tandem, 60, changed)
+        width[name] = [float(states[n - 1].boxes[0, 2]) for n in range(first, first + 4)]
+        assert len(states[-1].ids) == 2 and np.all(states[-1].boxes[:, 2] < 50)
+    assert width["road"][1] < 50 < width["motion"][1]     # split at frame 27 ...
+    assert width["motion"][3] < 50                        # ... and by the motion at 29
+
+
+def test_a_gap_of_body_is_one_vehicle_however_it_moves():
+    """Two pieces whose gap moves with the track are split by the gap's motion alone; where
+    MOG2 labelled the gap foreground or shadow, it is the body of one vehicle seen in two
+    pieces (a dark car's middle), and the track stays whole."""
+    assert len(_run_changed(_tandem, 60, None)[-1].ids) == 2
+    states = _run_changed(_tandem, 60, _body)
+    assert set().union(*(s.ids.tolist() for s in states)) == {1}
+    assert states[-1].boxes[0, 2] == pytest.approx(88, abs=3)
+
+
+def _tandem_flickering(t):
+    """Two cars in tandem whose boxes overlap on both axes (no gap to read), seen as two
+    pieces on two frames in three and as one blob on the third (bgslibrary's tandem cars)."""
+    front = 200 + 120 * t
+    if t < 1.0 or round(t * FPS) % 3 == 2:
+        return [(front - 30, 170, 70, 26)]
+    return [(front - 30, 176, 40, 20), (front, 170, 40, 20)]
+
+
+def test_the_gap_record_survives_a_merged_frame_with_the_changed_map():
+    """Each merged frame forgets the gap, so on its own the evidence never adds up and the
+    pair stays one track. With the changed map the record is held through one merged frame
+    (`split_hold_seconds`) while no frame showed the gap changed, and the second car gets
+    its own track."""
+    without = _run_changed(_tandem_flickering, 75, None)
+    assert set().union(*(s.ids.tolist() for s in without)) == {1}
+    held = _run_changed(_tandem_flickering, 75, _road)
+    assert max(len(s.ids) for s in held) == 2
+
+
+def _creeping_in_pieces(t):
+    """A 40 x 20 car creeping at 20 px/s (a queue moving up), seen whole but for 0.3 s from
+    t = 1.0 s, when its even paint shows as two pieces with an 8 px gap in its middle: by
+    then it has moved 20 px, half its length."""
+    x = 200 + 20 * t
+    if 1.0 <= t < 1.3:
+        return [(x, 170, 16, 20), (x + 24, 170, 16, 20)]
+    return [(x, 170, 40, 20)]
+
+
+def test_a_gap_in_a_vehicle_that_has_not_moved_its_length_is_not_read():
+    """MOG2's labels inside a vehicle that has not yet moved its own length say nothing
+    about body or road: the road it covers may be road it stood on (learnt into the
+    background with it), and a slow vehicle's even paint looks unchanged. The gap (which
+    moves with the car, being part of it) is then judged by its motion alone, which needs
+    `split_evidence` box scales of travel: the pieces join and the car keeps one track."""
+    states = _run_changed(_creeping_in_pieces, 50, _road)
+    assert set().union(*(s.ids.tolist() for s in states)) == {1}
+    assert states[-1].boxes[0, 2] == pytest.approx(40, abs=3)
+
+
+@pytest.mark.parametrize("pieces,held", [
+    ([(0, 0, 26, 30), (34, 0, 26, 30)], True),    # front and back, road between them
+    ([(0, 0, 60, 30), (40, 4, 14, 8)], False),    # a piece within the other's box
+])
+def test_only_a_gap_between_pieces_is_a_record_to_hold(pieces, held):
+    """The record of a gap between two pieces is held through a merged frame only while it
+    may be road between two vehicles; a piece lying within the other's box is a part of
+    it (a car's windows in the box of its body and shadow): no gap, nothing to hold."""
+    tr = Tracker(TrackerConfig(), W, H)
+    for n in range(1, 32):                 # a 60 x 30 car at 120 px/s, confirmed
+        t = (n - 1) / FPS
+        box = np.array([[100 + 120 * t, 170, 60, 30]])
+        tr.step(n, t, box[:, :2] + box[:, 2:] / 2, box, changed=_road)
+    t = 31 / FPS
+    b = np.array(pieces, dtype=float) + [100 + 120 * t, 170, 0, 0]
+    tr.step(32, t, b[:, :2] + b[:, 2:] / 2, b, changed=_road)
+    assert tr.tracks.gap_t[0] == pytest.approx(t)       # the pieces were recorded ...
+    assert bool(tr.tracks.gap_road[0]) is held          # ... as a gap that may be road
 
 
 @pytest.mark.parametrize("confirm_motion,expect_track", [(0.3, False), (0.0, True)])

@@ -143,7 +143,8 @@ class TrackJob:
                 # The tracker predicts once the detector knows the camera's motion, so that
                 # blobs holding several predicted vehicles can be divided among them.
                 dets = detector.locate(fg, lambda motion: tracker.predict(frame.time, motion))
-                ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes)
+                ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes,
+                                    dets.changed)
                 self.frames = frame.index
                 if self.detections is not None:
                     self.detections.add(frame.index, dets.boxes)

@@ -1,7 +1,9 @@
 """The associator: which detection updates which track, in four stages run in one order.
 
 1. fragments: detections that all lie in one confirmed track's predicted box are pieces of
-   one vehicle (joined) or several vehicles that came apart (the track is marked split);
+   one vehicle (joined) or several vehicles that came apart (the track is marked split),
+   told apart by the gap between them: its motion and, with the detector's changed map,
+   whether it is road or body;
 2. gate and assign: Mahalanobis gating on k-d-tree candidates, optimal assignment per
    connected group (vtrack.tracking.association);
 3. shared blobs: a detection holding the predicted centres of several confirmed tracks is a
@@ -12,6 +14,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +26,11 @@ from vtrack.tracking.measurements import nested_centre
 from vtrack.tracking.table import TrackTable
 
 
+NESTED = 0.9          # a piece this much inside the other is a part of it (no gap)
 SMALL_IN_BLOB = 0.25  # a track box under this share of a shared blob is not its duplicate
+
+# boxes (K, 4) x, y, w, h -> (K,) the share of each that the detector saw change (nan: none)
+ChangedShare = Callable[[np.ndarray], np.ndarray]
 
 
 def detection_sigma(cfg: TrackerConfig, scale: np.ndarray) -> np.ndarray:
@@ -52,12 +59,14 @@ class Associator:
         self.width, self.height = width, height
         self.gate = -2.0 * math.log1p(-cfg.gate_probability)  # chi-square quantile, 2 dof
 
-    def associate(self, tracks: TrackTable, t: float, centers: np.ndarray, boxes: np.ndarray
-                  ) -> Association:
-        """Pair this frame's detections with the predicted tracks."""
+    def associate(self, tracks: TrackTable, t: float, centers: np.ndarray, boxes: np.ndarray,
+                  changed: ChangedShare | None = None) -> Association:
+        """Pair this frame's detections with the predicted tracks; `changed` (boxes (K, 4)
+        -> (K,)) is the share of each box that the detector saw change, when it has one."""
         cfg = self.cfg
         track_boxes = tracks.boxes(self.width, self.height)
-        centers, boxes, split = self._join_fragments(tracks, track_boxes, t, centers, boxes)
+        centers, boxes, split = self._join_fragments(tracks, track_boxes, t, centers, boxes,
+                                                     changed)
         size, scale = tracks.size, tracks.scale
         sigma = detection_sigma(cfg, scale)
         ti, di, cost = gated_pairs(
@@ -74,19 +83,19 @@ class Associator:
         return Association(centers, boxes, mt, md, consumed, split, duplicates)
 
     def _join_fragments(self, tracks: TrackTable, track_boxes: np.ndarray, t: float,
-                        centers: np.ndarray, boxes: np.ndarray
+                        centers: np.ndarray, boxes: np.ndarray, changed: ChangedShare | None
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Detections whose centres all fall inside one confirmed track's predicted box (and
         in no other) are pieces of one vehicle cut by an occluder, or several vehicles the
-        track has followed as one blob (a queue far from the camera) that have now come apart.
+        track has followed as one blob (a queue far from the camera, two cars in tandem)
+        that have now come apart.
 
-        The gap between the two largest pieces tells them apart: an occluder is static, so
-        the gap stays where it first appeared while the vehicle moves on; the gap between two
-        vehicles moves with them. Once the track has moved `split_evidence_px` since the
-        pieces appeared, a gap that followed it by half that or more marks the track as
-        split (its box then shrinks to the piece it takes, freeing the others to start
-        tracks); until then, and for a static gap, the pieces are joined into their union.
-        Pieces spanning more than 1.2 times the track's box are separate vehicles at once.
+        The gap between the two largest pieces tells them apart (`_gap_moved`). Until it
+        does, the pieces are joined into their union; pieces spanning more than 1.2 times
+        the track's box are separate vehicles at once. A frame without the pieces (the blob
+        merged again) forgets the gap, unless the gap has looked like road and the pieces
+        were seen at most `split_hold_seconds` ago: a detector that flickers between two
+        vehicles in tandem and their union then still lets the evidence build up.
         Returns the detections and which tracks were split; records the gaps in the table.
         """
         split = np.zeros(len(tracks), dtype=bool)
@@ -106,31 +115,72 @@ class Associator:
                 x0 = boxes[parts, :2].min(axis=0)
                 x1 = (boxes[parts, :2] + boxes[parts, 2:]).max(axis=0)
                 apart = np.any(x1 - x0 > 1.2 * tracks.size[track])
-                if apart or self._gap_moved(tracks, track, t, boxes[parts]):
+                if apart or self._gap_moved(tracks, track, t, boxes[parts], changed):
                     split[track] = True
                     continue
                 boxes[parts[0]] = [*x0, *(x1 - x0)]
                 keep[parts[1:]] = False
             boxes = boxes[keep]
             centers = boxes[:, :2] + boxes[:, 2:] / 2
-        tracks.gap_t[~held | split] = np.nan
+        tracks.gap_seen[held] = t
+        holding = tracks.gap_road & (t - tracks.gap_seen <= self.cfg.split_hold_seconds + 1e-9)
+        tracks.gap_t[(~held & ~holding) | split] = np.nan
         return centers, boxes, split
 
-    def _gap_moved(self, tracks: TrackTable, track: int, t: float, pieces: np.ndarray
-                   ) -> bool:
-        """Whether the gap between the two largest `pieces` (x, y, w, h) has moved with the
-        track since it first appeared (see _join_fragments); records it when it is new."""
+    def _gap_moved(self, tracks: TrackTable, track: int, t: float, pieces: np.ndarray,
+                   changed: ChangedShare | None) -> bool:
+        """Whether the gap between the two largest `pieces` (x, y, w, h) shows several
+        vehicles; records it when it is new.
+
+        - An occluder is static: its gap stays where it first appeared while the vehicle
+          moves on. The gap between two vehicles moves with them. Once the track has moved
+          `split_evidence` box scales since the gap appeared, a gap that followed it by
+          half that or more shows several vehicles.
+        - With the detector's changed map (vision/changed.py), the gap's pixels tell as
+          well, once the vehicle has moved its own length since its first detection
+          (`_moved_its_length`). A gap that MOG2 labelled foreground or shadow for at least
+          `gap_changed_share` of it is body: one vehicle seen in two pieces, never split.
+          A gap of road that has moved with the track by half its travel or more, on a
+          frame after the one it appeared in, shows two vehicles at once. Pieces that
+          overlap on both axes have no gap to read; a piece lying within the other
+          (`NESTED`) is a part of it (a car's windows in its body), and its record is
+          not held through a merged frame (`_join_fragments`)."""
+        cfg = self.cfg
         a, b = pieces[np.argsort(pieces[:, 2] * pieces[:, 3])[-2:]]
         lo = np.minimum(a[:2] + a[2:], b[:2] + b[2:])   # per axis: the facing edges when the
         hi = np.maximum(a[:2], b[:2])                   # pieces are apart, else their overlap
         gap = (lo + hi) / 2
+        share = np.nan
+        if changed is not None and np.any(lo < hi) and _moved_its_length(tracks, track):
+            corner = np.minimum(lo, hi)
+            share = float(changed(np.array([[*corner, *(np.maximum(lo, hi) - corner)]]))[0])
+        body = bool(share >= cfg.gap_changed_share)   # nan: not known
         if np.isnan(tracks.gap_t[track]):
             tracks.gap_p[track], tracks.gap_t[track] = gap, t
+            nested = overlap_of_smaller(a, b[None])[0] >= NESTED
+            tracks.gap_road[track] = changed is not None and not body and not nested
             return False
+        if body:
+            tracks.gap_road[track] = False
+            return False
+        moved = np.hypot(*(gap - tracks.gap_p[track]))
         travelled = np.hypot(*tracks.x[track, 2:4]) * (t - tracks.gap_t[track])
-        if travelled < self.cfg.split_evidence * tracks.scale[track]:
+        if not np.isnan(share) and tracks.gap_road[track] and moved >= 0.5 * travelled:
+            return True
+        if travelled < cfg.split_evidence * tracks.scale[track]:
             return False
-        return bool(np.hypot(*(gap - tracks.gap_p[track])) >= 0.5 * travelled)
+        return bool(moved >= 0.5 * travelled)
+
+
+def _moved_its_length(tracks: TrackTable, track: int) -> bool:
+    """Whether the vehicle has moved its own length along its way since its first
+    detection. Until then the road it covers may be road it stood on, learnt into MOG2's
+    background with it (a queue, a vehicle in view from the start), and a slow vehicle's
+    even paint looks unchanged inside it: MOG2's labels there cannot tell body from road."""
+    first = (tracks.origin[track, :2] + tracks.origin[track, 2:]) / 2
+    way = tracks.x[track, :2] - first
+    travelled = float(np.hypot(*way))
+    return travelled > 0 and travelled >= float(np.abs(way) @ tracks.size[track]) / travelled
 
 
 def _resolve_shared(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray,

@@ -98,6 +98,20 @@ class TrackerConfig:
         "a track whose box holds two pieces tells one vehicle cut by an occluder (the gap "
         "between the pieces stays put) from several vehicles (the gap moves with them) once "
         "it has moved this far since the pieces appeared, box scales"))
+    split_hold_seconds: float = field(default=0.05, metadata=_h(
+        "the record of a gap between two pieces survives this long without them (a merged "
+        "frame between frames of pieces, as in a detector that flickers between two "
+        "vehicles in tandem and their union), s; only while the gap has looked like road "
+        "(`gap_changed_share`) and only with the detector's changed map (0: off)"))
+    gap_labels: bool = field(default=True, metadata=_h(
+        "read the gap between two pieces of a track's blob with MOG2's raw labels (the "
+        "detector's changed map, vision/changed.py): body or road (false: by its motion "
+        "alone, as before stop 41)"))
+    gap_changed_share: float = field(default=0.5, metadata=_h(
+        "a gap between two pieces of which MOG2 labelled at least this share foreground or "
+        "shadow is body (one vehicle, not split); under it the gap is road, and a road gap "
+        "that moves with the track on a second frame splits it at once; read only once the "
+        "vehicle has moved its own length since its first detection (associator.py)"))
     edge_margin: float = field(default=0.0, metadata=_h(
         "a track is deleted once its whole predicted box is this far outside the image, box "
         "scales (a vehicle half out of view keeps its track)"))
@@ -118,6 +132,9 @@ class TrackerConfig:
                 raise ValueError(f"tracker.{name} must be in (0, 1)")
         if not 0 < self.confirm_fraction <= 1:
             raise ValueError("tracker.confirm_fraction must be in (0, 1]")
-        for name in ("confirm_motion", "edge_margin", "size_grow_seconds", "stand_speed"):
+        if not 0 < self.gap_changed_share <= 1:
+            raise ValueError("tracker.gap_changed_share must be in (0, 1]")
+        for name in ("confirm_motion", "edge_margin", "size_grow_seconds", "stand_speed",
+                     "split_hold_seconds"):
             if getattr(self, name) < 0:
                 raise ValueError(f"tracker.{name} must be >= 0")

@@ -60,6 +60,7 @@ class Initiator:
         table.uid = np.arange(self.next_uid, self.next_uid + k)
         self.next_uid += k
         table.gap_p, table.gap_t = np.full((k, 2), np.nan), np.full(k, np.nan)
+        table.gap_seen, table.gap_road = np.full(k, np.nan), np.zeros(k, dtype=bool)
         return table
 
 

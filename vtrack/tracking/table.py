@@ -39,6 +39,8 @@ class TrackTable:
     uid: np.ndarray        # (N,) internal id, unique for the run
     gap_p: np.ndarray      # (N, 2) where a gap between two pieces was first seen
     gap_t: np.ndarray      # (N,) and when (nan: the track's box holds one piece)
+    gap_seen: np.ndarray   # (N,) when the track's box last held several pieces
+    gap_road: np.ndarray   # (N,) that gap may be road: not body on any frame, not nested
 
     @classmethod
     def empty(cls) -> TrackTable:
@@ -110,4 +112,5 @@ _LAYOUT = {  # per-track shape and dtype of each column
     "hitmask": ((), np.int64), "misses": ((), int), "killed": ((), bool), "standing": ((), bool),
     "id": ((), int),
     "uid": ((), int), "gap_p": ((2,), float), "gap_t": ((), float),
+    "gap_seen": ((), float), "gap_road": ((), bool),
 }

@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from vtrack.boxes import clip, intersection, paired_iou
-from vtrack.tracking.associator import Associator, detection_sigma
+from vtrack.tracking.associator import Associator, ChangedShare, detection_sigma
 from vtrack.tracking.box_size import BoxSizeFilter, anchored, own_size, remember_size
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
@@ -86,10 +86,11 @@ class Tracker:
         return self.reporter.MAX_PENDING + 1
 
     def step(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
-             motion: np.ndarray | None = None) -> FrameTracks:
+             motion: np.ndarray | None = None, changed: ChangedShare | None = None
+             ) -> FrameTracks:
         """predict, then update (see those)."""
         self.predict(t, motion)
-        return self.update(frame, t, centers, boxes)
+        return self.update(frame, t, centers, boxes, changed)
 
     def predict(self, t: float, motion: np.ndarray | None = None) -> np.ndarray:
         """Advance all tracks to time t (s); `motion` (2, 3) is the camera's, mapping the
@@ -108,14 +109,17 @@ class Tracker:
         size = tracks.size[conf]
         return np.hstack([tracks.x[conf, :2] - size / 2, size])
 
-    def update(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray
-               ) -> FrameTracks:
+    def update(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
+               changed: ChangedShare | None = None) -> FrameTracks:
         """Assimilate frame `frame`'s detections (centres (D, 2), boxes (D, 4)) into the
-        tracks predicted to its time t."""
+        tracks predicted to its time t. `changed`, when the detector has one, gives the share
+        of any box (K, 4) that it saw change (vision/changed.py): the associator reads the
+        gap between two pieces of a blob with it."""
         centers = np.asarray(centers, dtype=float).reshape(-1, 2)
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
         tracks = self.tracks
-        a = self.associator.associate(tracks, t, centers, boxes)
+        a = self.associator.associate(tracks, t, centers, boxes,
+                                      changed if self.cfg.gap_labels else None)
         tracks.killed[a.duplicates] = True
         innov = np.full(len(tracks), np.nan)
         predicted = tracks.boxes(self.width, self.height)[a.tracks]

@@ -46,6 +46,7 @@ import numpy as np
 
 from vtrack.vision.background import Mog2Background, estimate_background
 from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi
+from vtrack.vision.changed import ChangedMap
 from vtrack.vision.jitter import ShiftTolerance
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
 from vtrack.vision.shadows import drop_shadows, textured_shadow
@@ -179,6 +180,8 @@ class Detections:
     areas: np.ndarray    # (K,) foreground pixel count, px^2
     # (2, 3) camera motion: maps the previous frame's pixels onto this frame's
     motion: np.ndarray = field(default_factory=lambda: IDENTITY.copy())
+    # the share of any box that MOG2 saw change (changed.py); None without a frame
+    changed: ChangedMap | None = None
 
     def __len__(self) -> int:
         return len(self.areas)
@@ -195,6 +198,7 @@ class Foreground:
     """One frame after the detector's image stages (`MotionDetector.segment`)."""
 
     mask: np.ndarray            # cleaned foreground (0/255) at the detection resolution
+    labels: np.ndarray          # MOG2's raw mask (0 / 127 shadow / 255) before the cleaning
     moving: np.ndarray | None   # what changed over the last 2 frames (blobs.MotionMap)
     motion: np.ndarray          # (2, 3) camera motion: the previous frame -> this one
     camera: np.ndarray          # (2, 3) the stabiliser's reference -> this frame
@@ -288,7 +292,7 @@ class MotionDetector:
         if self.motion is not None:
             moving = self.motion(small if small is not image else image.copy())
         learning = self.frames <= cfg.warmup_frames and not self.background.primed
-        return Foreground(self.foreground, moving, motion, self._camera, learning)
+        return Foreground(self.foreground, raw, moving, motion, self._camera, learning)
 
     def locate(self, fg: Foreground,
                priors: Callable[[np.ndarray], np.ndarray] | None = None) -> Detections:
@@ -310,7 +314,8 @@ class MotionDetector:
         ref_boxes, boxes = boxes, transform_boxes(fg.camera, boxes)  # -> this frame's pixels
         if cfg.stabilise_robust:   # the fit follows the camera: the sway is a few pixels
             boxes = border_edges_kept(ref_boxes, boxes, self.width, self.height)
-        return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas, fg.motion)
+        return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas, fg.motion,
+                          ChangedMap(fg.labels, self._sx, self._sy, fg.camera))
 
     def _split(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
                predicted: np.ndarray, camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
