@@ -287,7 +287,8 @@ def test_a_gap_of_body_is_one_vehicle_however_it_moves():
 
 def _tandem_flickering(t):
     """Two cars in tandem whose boxes overlap on both axes (no gap to read), seen as two
-    pieces on two frames in three and as one blob on the third (bgslibrary's tandem cars)."""
+    pieces on two frames in three and as one blob on the third (a detector flickering
+    between two vehicles and their union, as on bgslibrary's highway)."""
     front = 200 + 120 * t
     if t < 1.0 or round(t * FPS) % 3 == 2:
         return [(front - 30, 170, 70, 26)]
