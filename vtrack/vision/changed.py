@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vtrack.vision.stabilise import invert, transform_boxes
+from vtrack.vision.stabilise import onto_mask
 
 
 class ChangedMap:
@@ -27,19 +27,19 @@ class ChangedMap:
         pixels per mask pixel; camera (2, 3): the reference -> this frame, full resolution."""
         self.labels = labels
         self.sx, self.sy = sx, sy
-        self.to_reference = invert(camera)
+        self.camera = camera
 
     def __call__(self, boxes: np.ndarray) -> np.ndarray:
         """(K,) share of changed pixels in boxes (K, 4), x, y, w, h in this frame's pixels:
         each box is mapped into the mask and widened to whole mask pixels; nan for a box
         that covers no mask pixel."""
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
-        ref = transform_boxes(self.to_reference, boxes)
+        m = onto_mask(boxes, self.camera, self.sx, self.sy)
         h, w = self.labels.shape[:2]
-        x0 = np.clip(np.floor(ref[:, 0] / self.sx), 0, w).astype(int)
-        y0 = np.clip(np.floor(ref[:, 1] / self.sy), 0, h).astype(int)
-        x1 = np.clip(np.ceil((ref[:, 0] + ref[:, 2]) / self.sx), 0, w).astype(int)
-        y1 = np.clip(np.ceil((ref[:, 1] + ref[:, 3]) / self.sy), 0, h).astype(int)
+        x0, y0 = np.floor(m[:, :2]).astype(int).T
+        x1, y1 = np.ceil(m[:, :2] + m[:, 2:]).astype(int).T
+        x0, x1 = np.clip(x0, 0, w), np.clip(x1, 0, w)
+        y0, y1 = np.clip(y0, 0, h), np.clip(y1, 0, h)
         share = np.full(len(boxes), np.nan)
         for k in np.flatnonzero((x1 > x0) & (y1 > y0)):
             region = self.labels[y0[k]:y1[k], x0[k]:x1[k]]

@@ -52,7 +52,7 @@ from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_fact
 from vtrack.vision.shadows import drop_shadows, textured_shadow
 from vtrack.vision.split import holders, split_blob
 from vtrack.vision.stabilise import (IDENTITY, Stabiliser, border_edges_kept, compose, invert,
-                                     rescale, transform_boxes)
+                                     onto_mask, rescale, transform_boxes)
 
 __all__ = ["DetectorConfig", "Detections", "Foreground", "MotionDetector", "downscale_factor"]
 
@@ -323,7 +323,7 @@ class MotionDetector:
         frame's pixels; `camera` maps the reference onto it) replaced by their pieces
         (split.py)."""
         scale = np.array([self._sx, self._sy, self._sx, self._sy])
-        pred = transform_boxes(invert(camera), predicted) / scale  # mask pixels
+        pred = onto_mask(predicted, camera, self._sx, self._sy)
         out_b, out_a = [], []
         for box, area, contour in zip(boxes, areas, contours, strict=True):
             held = holders(box / scale, pred)

@@ -84,6 +84,13 @@ def transform_boxes(m: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     return np.hstack([lo, hi - lo])
 
 
+def onto_mask(boxes: np.ndarray, camera: np.ndarray, sx: float, sy: float) -> np.ndarray:
+    """Boxes (x, y, w, h) in a frame's pixels mapped into the detection mask's: back through
+    the stabiliser's `camera` (reference -> that frame, full resolution) and down by the
+    full-resolution pixels (sx, sy) per mask pixel."""
+    return transform_boxes(invert(camera), boxes) / np.array([sx, sy, sx, sy])
+
+
 def border_edges_kept(ref_boxes: np.ndarray, boxes: np.ndarray, width: int, height: int
                       ) -> np.ndarray:
     """`boxes`, the reference's boxes `ref_boxes` (x, y, w, h) mapped into this frame, with
