@@ -215,7 +215,7 @@ def count(tracks: Path, lines: list[list[float]]) -> list[list[int]]:
 def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | None,
              peers: bool) -> Result:
     from vtrack.evaluation.detector_misses import miss_table
-    from vtrack.evaluation.false_positives import false_positive_counts
+    from vtrack.evaluation.false_positives import false_positive_counts, false_positive_shapes
     from vtrack.evaluation.mot import detection_scores, evaluate_arrays, read_mot
     from vtrack.evaluation.oracle import moved_share, unmoved_ignored
 
@@ -261,6 +261,7 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
                 s = evaluate_arrays(gt, rows)
                 res.scores[name] = {k: s[k] for k in METRICS}
                 res.scores[name]["fp_causes"] = false_positive_counts(gt, dets, rows)
+                res.scores[name]["fp_shapes"] = false_positive_shapes(gt, rows)
                 moved = evaluate_arrays(moved_gt, rows)
                 res.scores[name]["moved"] = {k: moved[k] for k in MOVED_METRICS}
             res.counts[name] = count(path, lines)
@@ -450,30 +451,37 @@ def print_misses(results: list[Result]) -> None:
 
 
 def print_false_positives(results: list[Result], trackers: list[str]) -> None:
-    """Per synthetic clip and tracker, its false positives by cause
-    (vtrack/evaluation/false_positives.py), and the sums over the clips."""
-    from vtrack.evaluation.false_positives import CLASSES
+    """Per synthetic clip and tracker, its false positives by cause and by where the box lies
+    on the ground truth (vtrack/evaluation/false_positives.py), and the sums over the
+    clips."""
+    from vtrack.evaluation.false_positives import CLASSES, SHAPES
 
     if not results:
         return
     heads = ("coasted", "false det.", "box off det.", "other")
-    print(f"{'false positives':<22}{'tracker':<11}" + "".join(f"{h:>14}" for h in heads))
-    total = {t: dict.fromkeys(CLASSES, 0) for t in trackers}
+    print(f"{'false positives':<22}{'tracker':<11}" + "".join(f"{h:>13}" for h in heads)
+          + " |" + "".join(f"{h:>11}" for h in SHAPES))
+    total = {t: dict.fromkeys(CLASSES + SHAPES, 0) for t in trackers}
     for r in results:
         for t in trackers:
             fp = r.scores.get(t, {}).get("fp_causes")
             if fp is None:
                 continue
-            for c in CLASSES:
+            fp = fp | r.scores[t]["fp_shapes"]
+            for c in CLASSES + SHAPES:
                 total[t][c] += fp[c]
             print(f"{r.clip if t == trackers[0] else '':<22}{t:<11}"
-                  + "".join(f"{fp[c]:14d}" for c in CLASSES))
+                  + "".join(f"{fp[c]:13d}" for c in CLASSES) + " |"
+                  + "".join(f"{fp[c]:11d}" for c in SHAPES))
     for t in trackers:
         print(f"{'sum' if t == trackers[0] else '':<22}{t:<11}"
-              + "".join(f"{total[t][c]:14d}" for c in CLASSES))
-    print("a tracker row no visible ground truth matches: coasted (no detection), a false "
-          "detection passed\non, a box that overlaps a detection matching the ground truth "
-          "while the box does not, other")
+              + "".join(f"{total[t][c]:13d}" for c in CLASSES) + " |"
+              + "".join(f"{total[t][c]:11d}" for c in SHAPES))
+    print("a tracker row no visible ground truth matches, by cause: coasted (no detection), "
+          "a false detection\npassed on, a box that overlaps a detection matching the ground "
+          "truth while the box does not,\nother; and by where it lies: holding half or more "
+          "of several vehicles, of one (too large\nor off), inside one vehicle (0.7 of the "
+          "box on it: a piece), elsewhere")
     print()
 
 
