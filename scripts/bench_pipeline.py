@@ -4,18 +4,25 @@ Start-up (process spawn, model set-up) is excluded by subtracting a one-frame ru
 timing; the tracked run includes the second read of the video's first seconds that
 estimates the background.
 
+It also prints the CPU time each run spends per frame, in this process and in the decoder
+children, and what that work allows: a run that needs C ms of CPU a frame on N cores takes
+at least C / N ms a frame, so the ratio cannot exceed N x (decode-only ms a frame) / C,
+however the work is spread over threads and processes.
+
     .venv/bin/python scripts/bench_pipeline.py [--frames 300] [--scene mast] [--config CFG]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import tempfile
 import time
 from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from vtrack.app import config
 from vtrack.app.track import TrackJob, TrackOptions, track_video
@@ -28,20 +35,41 @@ from vtrack.vision.video import VideoReader
 # The stages `vtrack track` runs in its main thread; the rest run in the segment worker.
 MAIN_THREAD = ("blobs", "split merged blobs", "tracker predict", "tracker update")
 BACKGROUND = "background estimate (2nd read)"  # before the first frame
+TARGET_RATIO = 0.45  # issue 12's target for the ratio tracked / decode-only fps
 
 
-def _decode(video: Path, frames: int) -> float:
-    t0 = time.perf_counter()
-    with VideoReader(video, max_frames=frames) as reader:
-        for _ in reader:
-            pass
-    return time.perf_counter() - t0
+class Timing(NamedTuple):
+    """Wall and CPU seconds of a run: CPU in this process and in its finished children."""
+
+    wall: float
+    cpu_self: float
+    cpu_children: float
+
+    def __sub__(self, other: Timing) -> Timing:
+        return Timing(*(a - b for a, b in zip(self, other, strict=True)))
 
 
-def _track(video: Path, out: Path, cfg: config.AppConfig, frames: int) -> float:
-    t0 = time.perf_counter()
-    track_video(video, out, cfg, TrackOptions(max_frames=frames))
-    return time.perf_counter() - t0
+def _timed(run: Callable[[], Any]) -> Timing:
+    """Time run(); the children are the decoder processes it started and closed."""
+    def cpu(who: int) -> float:
+        r = resource.getrusage(who)
+        return r.ru_utime + r.ru_stime
+    before = (time.perf_counter(), cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN))
+    run()
+    after = (time.perf_counter(), cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN))
+    return Timing(*(a - b for a, b in zip(after, before, strict=True)))
+
+
+def _decode(video: Path, frames: int) -> Timing:
+    def read() -> None:
+        with VideoReader(video, max_frames=frames) as reader:
+            for _ in reader:
+                pass
+    return _timed(read)
+
+
+def _track(video: Path, out: Path, cfg: config.AppConfig, frames: int) -> Timing:
+    return _timed(lambda: track_video(video, out, cfg, TrackOptions(max_frames=frames)))
 
 
 class StageTimes:
@@ -135,11 +163,21 @@ def main() -> None:
         decode = _decode(video, args.frames) - _decode(video, 1)
         track = _track(video, tmp / "out", cfg, args.frames) - _track(video, tmp / "o1", cfg, 1)
         stages, frames = stage_costs(video, cfg, args.frames)
+    cores = len(os.sched_getaffinity(0))
     print(f"video: 1280x720 MJPG (vtrack synth --scene {args.scene}), {args.frames} frames; "
           f"detect_width {cfg.detector.detect_width}")
-    print(f"decode only : {n / decode:8.1f} fps")
-    print(f"tracked     : {n / track:8.1f} fps")
-    print(f"ratio tracked/decode: {decode / track:.3f}")
+    print(f"decode only : {n / decode.wall:8.1f} fps")
+    print(f"tracked     : {n / track.wall:8.1f} fps")
+    print(f"ratio tracked/decode: {decode.wall / track.wall:.3f}")
+    print("CPU per frame (ms): this process / decoder children / wall")
+    for name, t in (("decode only", decode), ("tracked", track)):
+        print(f"  {name:<12}{1000 * t.cpu_self / n:7.2f} {1000 * t.cpu_children / n:7.2f}"
+              f" {1000 * t.wall / n:7.2f}")
+    cpu = track.cpu_self + track.cpu_children
+    print(f"the tracked run's CPU work on {cores} cores allows a ratio of at most "
+          f"{cores * decode.wall / cpu:.3f} ({TARGET_RATIO} needs at most "
+          f"{1000 * cores * decode.wall / TARGET_RATIO / n:.2f} ms of CPU a frame, this run "
+          f"took {1000 * cpu / n:.2f})")
     print(f"per frame (in-process, {frames} frames):")
     for name, sec in sorted(stages.seconds.items(), key=lambda kv: -kv[1]):
         print(f"  {name:<34}{1000 * sec / frames:7.2f} ms")
