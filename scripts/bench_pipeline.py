@@ -49,15 +49,19 @@ class Timing(NamedTuple):
         return Timing(*(a - b for a, b in zip(self, other, strict=True)))
 
 
+def _now() -> Timing:
+    """The wall clock and the CPU used so far by this process and its finished children."""
+    own, children = (resource.getrusage(who) for who in (resource.RUSAGE_SELF,
+                                                         resource.RUSAGE_CHILDREN))
+    return Timing(time.perf_counter(), own.ru_utime + own.ru_stime,
+                  children.ru_utime + children.ru_stime)
+
+
 def _timed(run: Callable[[], Any]) -> Timing:
     """Time run(); the children are the decoder processes it started and closed."""
-    def cpu(who: int) -> float:
-        r = resource.getrusage(who)
-        return r.ru_utime + r.ru_stime
-    before = (time.perf_counter(), cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN))
+    before = _now()
     run()
-    after = (time.perf_counter(), cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN))
-    return Timing(*(a - b for a, b in zip(after, before, strict=True)))
+    return _now() - before
 
 
 def _decode(video: Path, frames: int) -> Timing:
