@@ -11,6 +11,7 @@ a decoder failure or a live source that is lost, what was processed is flushed w
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -77,6 +78,10 @@ class TrackJob:
         self.out = Path(out_dir)
         self.cfg = cfg
         self.opts = opts
+        if opts.calibration is None and cfg.calibration:   # --calibration overrides it
+            from vtrack.analytics.calibration import load_calibration
+
+            self.opts = dataclasses.replace(opts, calibration=load_calibration(cfg.calibration))
         self.trails = Trails(cfg.output.trail_length)
         self.info: Any = None
         self.reader: Any = None
@@ -110,8 +115,10 @@ class TrackJob:
         self._prepare_out_dir()
         parts: list[Any] = []   # progress bar, video writer, rerun logger: closed at the end
         try:
+            roi = self.cfg.roi.pixels(self.info.width, self.info.height) if self.cfg.roi \
+                else None
             detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height,
-                                      self.info.fps)
+                                      self.info.fps, roi)
             if not self.reader.live:
                 detector.initialise(self._background_samples())
             tracker = Tracker(self.cfg.tracker, self.info.width, self.info.height,
