@@ -134,6 +134,7 @@ def test_draw_save_and_track(mast, tmp_path):
             for u, v in _image(truth, ends, size):
                 page.click_image(u, v)
             page.name("line", k, name)
+        page.find("#rev-line-1").click()                     # "far" counts the other way
         page.tool("gate-line")
         for u, v in _image(truth, GATE_LINE, size):
             page.click_image(u, v)
@@ -197,6 +198,8 @@ def test_draw_save_and_track(mast, tmp_path):
     # that fixes the forward direction the page's arrow shows.
     (x1, _), (x2, _) = saved["count_lines"][0]["points"]
     assert x1 > x2
+    (x1, _), (x2, _) = saved["count_lines"][1]["points"]     # reversed on the page
+    assert x1 < x2
 
     # What the page showed is what the project's fit says about the saved points.
     try:
