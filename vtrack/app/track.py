@@ -119,7 +119,10 @@ class TrackJob:
                 else None
             detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height,
                                       self.info.fps, roi)
-            if not self.reader.live:
+            # a second read of the start: a file, or a stream of known length (a file on
+            # a web server); a live stream read every frame (--live no) has no start to
+            # read again, and a camera may not open twice
+            if not self.reader.live and (self.source.is_file or self.info.frame_count):
                 detector.initialise(self._background_samples())
             tracker = Tracker(self.cfg.tracker, self.info.width, self.info.height,
                               self.info.fps)

@@ -69,16 +69,16 @@ def run(args: argparse.Namespace) -> int:
                          f"({exc.strerror or exc})") from None
     thread = threading.Thread(target=server.serve_forever, name="vtrack-setup", daemon=True)
     thread.start()
-    print(f"vtrack setup: {server.url} (saves {cfg_path}; Done on the page or Ctrl-C stops)",
-          flush=True)
-    if not args.no_browser:
-        import webbrowser
+    try:   # from here on, Ctrl-C (or SIGTERM) ends the session normally
+        print(f"vtrack setup: {server.url} (saves {cfg_path}; Done on the page or Ctrl-C "
+              f"stops)", flush=True)
+        if not args.no_browser:
+            import webbrowser
 
-        webbrowser.open(server.url)
-    try:
+            webbrowser.open(server.url)
         while not server.done.wait(0.2):
             pass
-    except KeyboardInterrupt:    # Ctrl-C (or SIGTERM) ends the session normally
+    except KeyboardInterrupt:
         print("stopped")
     finally:
         server.shutdown()
