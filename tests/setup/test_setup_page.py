@@ -176,6 +176,19 @@ def test_draw_save_and_track(mast, tmp_path):
         page.find("#done").click()
         assert proc.wait(timeout=10) == 0
         assert proc.stderr.read() == ""
+        # A second session shows what was saved, ready to edit.
+        proc, url = _start_setup(mast / "video.avi")
+        driver.get(url)
+        WebDriverWait(driver, 20).until(
+            lambda d: d.execute_script("return document.body.dataset.ready") == "yes")
+        shown = driver.execute_script(
+            "return [...document.querySelectorAll('#panel input')].map(e => e.id + '=' + e.value)")
+        assert {"name-line-0=near", "name-line-1=far", "name-gate-0=south",
+                "name-gate-1=north", "name-zone-0=queue", "X-5=40", "Y-5=3.5"} <= set(shown)
+        WebDriverWait(driver, 10).until(
+            lambda d: d.find_element(page.By.ID, "fit").get_attribute("data-state") == fit_state)
+        page.find("#done").click()
+        assert proc.wait(timeout=10) == 0
     finally:
         driver.quit()
         if proc.poll() is None:
