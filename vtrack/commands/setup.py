@@ -10,10 +10,9 @@ from pathlib import Path
 from vtrack.errors import InputError
 
 NAME = "setup"
-HELP = ("serve a page on 127.0.0.1 showing VIDEO's first frame where count lines, gates, "
-        "zones, the region of interest and calibration points are drawn; saving writes "
-        "CFG.toml (default VIDEO_STEM.toml beside the video, other keys kept) and, with "
-        "calibration points, VIDEO_STEM.calibration.toml beside it")
+HELP = ("draw count lines, gates, zones, the region of interest and calibration points on "
+        "VIDEO's first frame in a page on 127.0.0.1; Save writes CFG.toml (other keys kept) "
+        "and VIDEO_STEM.calibration.toml")
 
 
 def _port(text: str) -> int:
