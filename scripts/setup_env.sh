@@ -21,3 +21,15 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ] || ! .venv/bin/python -
   .venv/bin/python -m pip install --quiet --no-deps "trackers==2.6.1" "supervision==0.31.2"
   echo "$want" > "$stamp"
 fi
+# The set-up page's browser test (tests/setup/test_setup_page.py) drives Debian's Chromium
+# and its driver. As root with apt-get, install them once when missing (quietly; the marker
+# stops a retry on every run if that fails); otherwise the test skips and says why.
+if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 \
+    && ! { command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; } \
+    && [ ! -f .venv/.vtrack-chromium-tried ]; then
+  touch .venv/.vtrack-chromium-tried
+  if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+        chromium chromium-driver; } >/dev/null 2>&1; then
+    echo "setup_env: could not install chromium chromium-driver (the browser test will skip)" >&2
+  fi
+fi

@@ -53,7 +53,7 @@ def stamped():
 def test_source_spec_is_kept_verbatim(text, kind, target, stem):
     src = parse_source(text)
     assert (src.spec, src.kind, src.target, src.stem) == (text, kind, target, stem)
-    assert src.live == (kind != "file")
+    assert src.is_file == (kind == "file")
 
 
 def test_malformed_camera_index_is_an_input_error():

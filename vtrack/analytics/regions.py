@@ -8,6 +8,8 @@ optionally named; converted to pixels once the video's size is known.
     polygon = [[0.1, 0.7], [0.5, 0.7], [0.5, 0.8], [0.1, 0.8]]
     units = "fraction"            # "px" by default
     debounce_s = 0.2              # optional
+    roi = [[0.0, 0.4], [1.0, 0.4], [1.0, 1.0], [0.0, 1.0]]   # region of interest (top level)
+    roi_units = "fraction"        # "px" by default
 
 A fraction f of the width W is the pixel coordinate f * W (0 is the left edge of the image,
 1 its right edge), likewise for the height.
@@ -57,6 +59,18 @@ class Zone:
     debounce_s: float = field(default=ZONE_DEBOUNCE_S, metadata={
         "help": "a vehicle is in (or out of) the zone once its ground point has stayed in "
                 "(or out) this long, s; the event is dated from the first frame of the stay"})
+
+    def pixels(self, width: int, height: int) -> np.ndarray:
+        """(n, 2) vertices in pixels of a width x height image."""
+        return _scale(self.polygon, self.units, width, height)
+
+
+@dataclass(frozen=True)
+class Roi:
+    """The region of interest: the detector sees only what lies inside this polygon."""
+
+    polygon: tuple[tuple[float, float], ...]
+    units: str = "px"
 
     def pixels(self, width: int, height: int) -> np.ndarray:
         """(n, 2) vertices in pixels of a width x height image."""
@@ -156,10 +170,26 @@ def parse_zone(where: str, value: Any) -> Zone:
     _table(where, value, {"name", "polygon", "units", "debounce_s"}, {"name", "polygon"})
     name = _name(where, value["name"])
     where = f"{where} {name!r}"
-    poly = _points(f"{where} polygon", value["polygon"])
+    poly, units = _polygon(where, value["polygon"], value.get("units", "px"))
+    debounce = value.get("debounce_s", ZONE_DEBOUNCE_S)
+    if isinstance(debounce, bool) or not isinstance(debounce, (int, float)) or not (
+            0 <= debounce < math.inf):
+        raise InputError(f"{where}: debounce_s must be a number >= 0")
+    return Zone(name, tuple(poly), units, float(debounce))
+
+
+def parse_roi(where: str, polygon: Any, units: Any = "px") -> Roi:
+    """roi = [[x, y], ...] (3+ vertices, simple, non-zero area) with roi_units."""
+    poly, units = _polygon(where, polygon, units)
+    return Roi(tuple(poly), units)
+
+
+def _polygon(where: str, value: Any, units: Any) -> tuple[list[tuple[float, float]], str]:
+    """A simple polygon of 3+ vertices with non-zero area (shoelace), and its units."""
+    poly = _points(f"{where} polygon", value)
     if len(poly) < 3:
         raise InputError(f"{where}: a polygon needs at least 3 vertices")
-    units = _units(where, value.get("units", "px"), poly)
+    units = _units(where, units, poly)
     p = np.array(poly)
     n = len(p)
     for i in range(n):
@@ -171,11 +201,7 @@ def parse_zone(where: str, value: Any) -> Zone:
     area = 0.5 * abs(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1)))
     if not area > 0:
         raise InputError(f"{where}: polygon has zero area")
-    debounce = value.get("debounce_s", ZONE_DEBOUNCE_S)
-    if isinstance(debounce, bool) or not isinstance(debounce, (int, float)) or not (
-            0 <= debounce < math.inf):
-        raise InputError(f"{where}: debounce_s must be a number >= 0")
-    return Zone(name, tuple(poly), units, float(debounce))
+    return poly, units
 
 
 def check_unique_names(source: str, lines: Sequence[CountLine], zones: Sequence[Zone]) -> None:

@@ -2,6 +2,8 @@
 defaults (`vtrack config --defaults` prints them). Unknown sections or keys are errors.
 
     count_lines = [[x1, y1, x2, y2], {name, points, units}, ...]   # top level
+    roi = [[x, y], ...], roi_units = "px"|"fraction"                 # top level, optional
+    calibration = "CALIB.toml"    # top level, optional; relative to this file
     [[zones]] name, polygon, units, debounce_s                      # vtrack.analytics.regions
     [detector] ...   vtrack.vision.detect.DetectorConfig
     [tracker]  ...   vtrack.tracking.tracker.TrackerConfig
@@ -18,8 +20,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from vtrack.analytics.regions import (ZONE_DEBOUNCE_S, CountLine, Zone, check_unique_names,
-                                      parse_count_line, parse_zone)
+from vtrack.analytics.regions import (ZONE_DEBOUNCE_S, CountLine, Roi, Zone,
+                                      check_unique_names, parse_count_line, parse_roi,
+                                      parse_zone)
 from vtrack.errors import InputError
 from vtrack.fileio import read_toml
 from vtrack.tracking.config import TrackerConfig
@@ -47,6 +50,8 @@ class AppConfig:
     output: OutputConfig = field(default_factory=OutputConfig)
     count_lines: list[CountLine] = field(default_factory=list)
     zones: list[Zone] = field(default_factory=list)
+    roi: Roi | None = None            # the detector sees only inside this polygon
+    calibration: str | None = None    # CALIB.toml (resolved against the config's folder)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -80,10 +85,26 @@ def _coerce(where: str, value: Any, default: Any) -> Any:
     return value
 
 
-def from_dict(data: dict[str, Any], source: str = "config") -> AppConfig:
-    """Build an AppConfig from parsed TOML; unknown keys and wrong types raise InputError."""
+TOP_KEYS = ("count_lines", "zones", "roi", "roi_units", "calibration")
+
+
+def from_dict(data: dict[str, Any], source: str = "config",
+              base: Path | None = None) -> AppConfig:
+    """Build an AppConfig from parsed TOML; unknown keys and wrong types raise InputError.
+    A relative `calibration` path is taken relative to `base` (the config file's folder)."""
     cfg = AppConfig()
+    if "roi" in data:
+        cfg.roi = parse_roi(f"{source}: roi", data["roi"], data.get("roi_units", "px"))
+    elif "roi_units" in data:
+        raise InputError(f"{source}: roi_units without roi")
+    if "calibration" in data:
+        path = data["calibration"]
+        if not isinstance(path, str) or not path.strip():
+            raise InputError(f"{source}: calibration must be the path of a CALIB.toml file")
+        cfg.calibration = str(base / path if base is not None else Path(path))
     for key, value in data.items():
+        if key in ("roi", "roi_units", "calibration"):
+            continue
         if key in ("count_lines", "zones"):
             if not isinstance(value, list):
                 raise InputError(f"{source}: {key} must be a list")
@@ -92,7 +113,7 @@ def from_dict(data: dict[str, Any], source: str = "config") -> AppConfig:
             continue
         if key not in SECTIONS:
             raise InputError(f"{source}: unknown key or section {key!r} "
-                             f"(known: count_lines, zones, {', '.join(SECTIONS)})")
+                             f"(known: {', '.join(TOP_KEYS)}, {', '.join(SECTIONS)})")
         if not isinstance(value, dict):
             raise InputError(f"{source}: [{key}] must be a table")
         section = getattr(cfg, key)
@@ -117,7 +138,7 @@ def load(path: str | Path | None) -> AppConfig:
     if path is None:
         return AppConfig()
     data = read_toml(path)
-    return from_dict(data, str(path))
+    return from_dict(data, str(path), Path(path).parent)
 
 
 def _toml_value(v: Any) -> str:
@@ -140,7 +161,15 @@ def defaults_toml() -> str:
                  "units = \"px\" | \"fraction\" and debounce_s (default "
                  f"{ZONE_DEBOUNCE_S}: {Zone.__dataclass_fields__['debounce_s'].metadata['help']}"
                  ").", 90)),
-             "zones = []", ""]
+             "zones = []",
+             "# Region of interest: the detector sees only inside this polygon (3+ vertices,",
+             "# in roi_units \"px\" (default) or \"fraction\"); none: the whole frame.",
+             "# roi = [[0, 0.4], [1, 0.4], [1, 1], [0, 1]]",
+             "# roi_units = \"fraction\"",
+             "# Ground-plane calibration (CALIB.toml, a path relative to this file); "
+             "--calibration",
+             "# overrides it.",
+             "# calibration = \"site.calibration.toml\"", ""]
     cfg = AppConfig()
     for name, cls in SECTIONS.items():
         lines.append(f"[{name}]")

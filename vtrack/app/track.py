@@ -11,6 +11,7 @@ a decoder failure or a live source that is lost, what was processed is flushed w
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -48,6 +49,7 @@ class TrackOptions:
     bin_seconds: float = 60.0                 # time bin of counts.csv
     reconnect_seconds: float = 30.0   # a live source silent this long is lost (exit 2)
     flush_seconds: float = 10.0       # outputs brought up to date at least this often
+    live: str = "auto"                # --live auto|yes|no (vision.sources.live_request)
     warn: Callable[[str], None] = _warn
 
 
@@ -76,6 +78,10 @@ class TrackJob:
         self.out = Path(out_dir)
         self.cfg = cfg
         self.opts = opts
+        if opts.calibration is None and cfg.calibration:   # --calibration overrides it
+            from vtrack.analytics.calibration import load_calibration
+
+            self.opts = dataclasses.replace(opts, calibration=load_calibration(cfg.calibration))
         self.trails = Trails(cfg.output.trail_length)
         self.info: Any = None
         self.reader: Any = None
@@ -95,7 +101,8 @@ class TrackJob:
         from vtrack.vision.video import VideoReader
 
         self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
-                                  reconnect_seconds=self.opts.reconnect_seconds)
+                                  reconnect_seconds=self.opts.reconnect_seconds,
+                                  live=self.opts.live)
         self.info = self.reader.info
         try:   # a calibration for another frame size fails here, before any output
             self.analytics = TrafficAnalytics(
@@ -108,9 +115,14 @@ class TrackJob:
         self._prepare_out_dir()
         parts: list[Any] = []   # progress bar, video writer, rerun logger: closed at the end
         try:
+            roi = self.cfg.roi.pixels(self.info.width, self.info.height) if self.cfg.roi \
+                else None
             detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height,
-                                      self.info.fps)
-            if not self.source.live:
+                                      self.info.fps, roi)
+            # a second read of the start: a file, or a stream of known length (a file on
+            # a web server); a live stream read every frame (--live no) has no start to
+            # read again, and a camera may not open twice
+            if not self.reader.live and (self.source.is_file or self.info.frame_count):
                 detector.initialise(self._background_samples())
             tracker = Tracker(self.cfg.tracker, self.info.width, self.info.height,
                               self.info.fps)
@@ -190,9 +202,9 @@ class TrackJob:
         return sinks
 
     def _background_samples(self) -> Iterator[Any]:
-        """Frames sampled evenly over the first `init_background_seconds` of a video file
-        (a second, supervised read of its start that hands over only the sampled frames),
-        for the detector's background. A file that fails here gives what was read: the
+        """Frames sampled evenly over the first `init_background_seconds` of a source not
+        read live (a second, supervised read of its start that hands over only the sampled
+        frames), for the detector's background. A file that fails here gives what was read: the
         main read reports the failure."""
         from vtrack.vision.video import VideoReader
 
@@ -206,7 +218,8 @@ class TrackJob:
             return
         stride = n / cfg.init_background_samples
         wanted = {1 + int(k * stride) for k in range(cfg.init_background_samples)}
-        with VideoReader(self.source, keep=wanted) as reader:
+        with VideoReader(self.source, keep=wanted, live="no",
+                         reconnect_seconds=self.opts.reconnect_seconds) as reader:
             try:
                 for frame in reader:
                     yield frame.image
@@ -252,7 +265,7 @@ class TrackJob:
         total = self.info.frame_count or None
         if self.opts.max_frames:
             total = min(total or self.opts.max_frames, self.opts.max_frames)
-        desc = self.source.spec if self.source.live else Path(self.source.spec).name
+        desc = Path(self.source.spec).name if self.source.is_file else self.source.spec
         return tqdm(total=total, unit="frame", desc=desc, file=sys.stderr,
                     dynamic_ncols=True)
 
@@ -287,7 +300,7 @@ class TrackJob:
             **entries,
             "complete": self.stopped_by in ("end", "max-frames"),
             "stopped_by": self.stopped_by,
-            "live": self.source.live,
+            "live": self.reader.live,
             "reconnects": self.reader.reconnects,
             "dropped_frames": self.reader.dropped_frames,
             "vtrack_version": __version__,

@@ -18,6 +18,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.check:
         cfg = config.load(args.check)
+        if cfg.calibration:
+            from vtrack.analytics.calibration import load_calibration
+
+            load_calibration(cfg.calibration)   # exists and fixes a homography
         print(f"{args.check}: ok (config hash {cfg.digest()})")
         return 0
     print(config.defaults_toml())

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from vtrack.analytics.regions import parse_cli_line
 from vtrack.errors import InputError
-from vtrack.vision.sources import parse_source
+from vtrack.vision.sources import LIVE_MODES, parse_source
 
 NAME = "track"
 HELP = "track vehicles in a video file, stream (rtsp/http/https) or camera (cam:N)"
@@ -52,6 +52,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--reconnect-seconds", type=float, default=30.0, metavar="S",
                    help="live source: retry a lost connection with back-off for up to S "
                         "seconds, then stop with exit 2 (default 30)")
+    p.add_argument("--live", choices=LIVE_MODES, default="auto",
+                   help="read the source live (newest frame, frames dropped when tracking "
+                        "falls behind, counted) or every frame at the tracker's pace; auto "
+                        "(default): live for rtsp://, cameras and http(s) streams of unknown "
+                        "length, every frame for files and http(s) videos of known length")
     p.add_argument("--flush-seconds", type=float, default=10.0, metavar="S",
                    help="bring the output files up to date at least every S seconds "
                         "(default 10)")
@@ -81,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
                         max_frames=args.max_frames, save_detections=args.save_detections,
                         progress=not args.quiet and sys.stdout.isatty(),
                         reconnect_seconds=args.reconnect_seconds,
-                        flush_seconds=args.flush_seconds,
+                        flush_seconds=args.flush_seconds, live=args.live,
                         calibration=calibration, bin_seconds=args.bin_seconds)
     summary = track_video(source.spec, out, cfg, opts)
     if not args.quiet:

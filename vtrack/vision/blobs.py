@@ -30,6 +30,16 @@ def load_roi(path: str, size: tuple[int, int]) -> np.ndarray:
     return np.where(mask >= 128, 255, 0).astype(np.uint8)
 
 
+def polygon_mask(polygon: np.ndarray, size: tuple[int, int],
+                 within: np.ndarray | None = None) -> np.ndarray:
+    """0/255 mask of `size` (w, h), 255 inside `polygon` (n, 2, in that mask's pixels,
+    pixel centres at integers), ANDed with `within` when given."""
+    mask = np.zeros((size[1], size[0]), np.uint8)
+    pts = np.round(np.asarray(polygon, dtype=float) * 16).astype(np.int32)   # 4 fraction bits
+    cv2.fillPoly(mask, [pts], 255, lineType=cv2.LINE_8, shift=4)
+    return mask if within is None else cv2.bitwise_and(mask, within)
+
+
 class MaskCleaner:
     """Foreground mask -> binary mask: the ROI, then opening (removes speckle and leaf
     flicker) and closing (fills a vehicle's holes -- windows, a roof the colour of the

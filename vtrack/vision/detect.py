@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from vtrack.vision.background import Mog2Background, estimate_background
-from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi
+from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi, polygon_mask
 from vtrack.vision.changed import ChangedMap
 from vtrack.vision.jitter import ShiftTolerance
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
@@ -208,7 +208,10 @@ class Foreground:
 class MotionDetector:
     """MOG2 detector for one video of a fixed frame size; call `detect` once per frame."""
 
-    def __init__(self, cfg: DetectorConfig, width: int, height: int, fps: float = 25.0) -> None:
+    def __init__(self, cfg: DetectorConfig, width: int, height: int, fps: float = 25.0,
+                 roi: np.ndarray | None = None) -> None:
+        """`roi`: the region of interest, a polygon (n, 2) in frame pixels; foreground
+        outside it (and outside `cfg.roi_mask`) is ignored."""
         cfg.validate()
         self.cfg = cfg
         self.width, self.height = width, height
@@ -220,8 +223,10 @@ class MotionDetector:
         self.background = Mog2Background(cfg.history, cfg.var_threshold, cfg.var_min,
                                          cfg.detect_shadows, cfg.shadow_ratio,
                                          cfg.learning_rate, cfg.warmup_frames)
-        roi = load_roi(cfg.roi_mask, size) if cfg.roi_mask else None
-        self.clean = MaskCleaner(roi, cfg.open_kernel, cfg.close_kernel)
+        mask = load_roi(cfg.roi_mask, size) if cfg.roi_mask else None
+        if roi is not None:
+            mask = polygon_mask(roi / (self._sx, self._sy), size, mask)
+        self.clean = MaskCleaner(mask, cfg.open_kernel, cfg.close_kernel)
         self.shifted = (ShiftTolerance(cfg.shift_tolerance, cfg.shift_radius)
                         if cfg.shift_tolerance > 0 and cfg.stabilise else None)
         self.motion = MotionMap() if cfg.min_motion > 0 else None

@@ -5,8 +5,11 @@
 - `cam:N`: camera index N (OpenCV's device numbering, e.g. /dev/videoN);
 - anything else: a path to a video file.
 
-Streams and cameras are live: read as they come (frames dropped when processing falls
-behind), reconnected when the connection drops.
+How a source is read is `--live auto|yes|no` (`live_request`): live means newest-frame
+reading (frames dropped when processing falls behind, counted) with reconnection when the
+connection drops; otherwise every frame is read at the tracker's pace, as from a file.
+`auto` reads `rtsp://` and cameras live, files not, and an `http(s)://` source live only
+when it has no known length (the decoder decides once it has opened it).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from pathlib import Path
 from vtrack.errors import InputError
 
 STREAM_SCHEMES = ("rtsp", "http", "https")
+LIVE_MODES = ("auto", "yes", "no")
 _STREAM = re.compile(rf"^({'|'.join(STREAM_SCHEMES)})://", re.IGNORECASE)
 _CAMERA = re.compile(r"^cam:(.*)$")
 
@@ -31,9 +35,9 @@ class Source:
     kind: str    # "file" | "stream" | "camera"
 
     @property
-    def live(self) -> bool:
-        """Whether frames arrive in real time (a stream or a camera), not from a file."""
-        return self.kind != "file"
+    def is_file(self) -> bool:
+        """Whether SOURCE is a path on this machine (not a stream address or a camera)."""
+        return self.kind == "file"
 
     @property
     def target(self) -> str | int:
@@ -64,3 +68,16 @@ def parse_source(text: str | os.PathLike) -> Source:
             raise InputError(f"{spec}: expected cam:N with N a camera index (0, 1, ...)")
         return Source(f"cam:{int(cam.group(1))}", "camera")
     return Source(spec, "file")
+
+
+def live_request(source: Source, mode: str) -> bool | None:
+    """How `--live MODE` reads `source`: True (live), False (every frame, at the caller's
+    pace) or None (`auto` on an http(s) stream: live unless the opened stream reports a
+    known length, i.e. a frame count or a duration)."""
+    if mode not in LIVE_MODES:
+        raise ValueError(f"live mode must be one of {', '.join(LIVE_MODES)} (got {mode!r})")
+    if mode != "auto":
+        return mode == "yes"
+    if source.kind == "stream" and source.spec.lower().startswith(("http://", "https://")):
+        return None
+    return not source.is_file

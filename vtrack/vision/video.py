@@ -13,11 +13,14 @@ frames over through a shared-memory ring of `RING_SLOTS` frames:
 - decoding overlaps the caller's work (a second core for the pipeline).
 
 A file is read frame by frame at the caller's pace (the child waits for a free slot). A
-live source (stream or camera) cannot wait: the child keeps reading, hands over at most
-`LIVE_SLOTS` frames at a time and holds only the newest of the rest, so when the caller
-falls behind, older frames are dropped (`dropped_frames`) and latency stays bounded. A live
-connection that drops or stalls is reopened with exponential back-off for up to
-`reconnect_seconds` (also when first opening it); then the reader raises InputError.
+live source cannot wait: the child keeps reading, hands over at most `LIVE_SLOTS` frames at
+a time and holds only the newest of the rest, so when the caller falls behind, older frames
+are dropped (`dropped_frames`) and latency stays bounded. A live connection that drops or
+stalls is reopened with exponential back-off for up to `reconnect_seconds` (also when first
+opening it); then the reader raises InputError. Which sources are read live is `live`
+(`sources.live_request`): with "auto" an http(s) stream that reports a known length (a
+video file on a web server) is read like a file, every frame at the caller's pace, and
+one whose connection breaks before its end raises InputError after the frames read.
 
 The ring is an anonymous memory file (memfd) whose descriptor is passed over the control
 socket, so nothing is left behind even if both processes are killed. Measured at 1280x720
@@ -60,7 +63,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from vtrack.errors import InputError  # noqa: E402
-from vtrack.vision.sources import Source, parse_source  # noqa: E402
+from vtrack.vision.sources import Source, live_request, parse_source  # noqa: E402
 
 ABORT_HOOK_ENV = "VTRACK_TEST_DECODER_ABORT_AFTER"
 DEFAULT_FPS = 25.0        # used when the container reports no usable frame rate
@@ -88,7 +91,7 @@ class VideoInfo:
     height: int
     fps: float        # container frame rate; DEFAULT_FPS when it reports none
     frame_count: int  # from the container, 0 if unknown (may differ from frames decoded)
-    live: bool = False
+    live: bool = False  # read live (newest frame, drops counted), not every frame
 
 
 @dataclass
@@ -232,16 +235,17 @@ class _Job:
 
     target: str | int                 # path, address or camera index
     max_frames: int | None
-    reconnect_seconds: float | None   # None: a file, read at the caller's pace
-    keep: tuple[int, ...] | None = None   # a file: hand over only these frames (sorted)
+    reconnect_seconds: float | None   # None: a local file (opened without time-outs)
+    keep: tuple[int, ...] | None = None   # not live: hand over only these frames (sorted)
+    live: bool | None = False         # None: live unless the source reports its length
 
 
 def _decoder_main(fd: int) -> None:
     """Entry point of the child: decode the job received on socket `fd`; quiet on every exit.
 
     Protocol, parent -> child: a _Job; the ring's descriptor (SCM_RIGHTS); then each slot
-    index once the parent has copied that slot. Child -> parent: ("info", w, h, fps, count)
-    or ("error", text); then ("frame", slot, pos_ms, wall_s, dropped, reconnects)* and
+    index once the parent has copied that slot. Child -> parent: ("info", w, h, fps, count,
+    live) or ("error", text); then ("frame", slot, pos_ms, wall_s, dropped, reconnects)* and
     ("end",) or ("error", text). SIGINT/SIGTERM arrive blocked (see VideoReader._start):
     the parent decides.
     """
@@ -332,24 +336,29 @@ def _decode(conn: Connection, job: _Job, abort_after: int | None) -> None:
             return
         cap, first = opened
     height, width = first.shape[:2]
-    conn.send(("info", width, height, cap.get(cv2.CAP_PROP_FPS),
-               cap.get(cv2.CAP_PROP_FRAME_COUNT)))
+    count = cap.get(cv2.CAP_PROP_FRAME_COUNT)   # OpenCV: nb_frames, else duration x fps
+    live = job.live if job.live is not None else _frame_count(count) == 0
+    conn.send(("info", width, height, cap.get(cv2.CAP_PROP_FPS), count, live))
     ring_fd = recv_handle(conn)
     ring = mmap.mmap(ring_fd, RING_SLOTS * height * width * 3)
     os.close(ring_fd)
     slots = np.frombuffer(ring, np.uint8).reshape(RING_SLOTS, height, width, 3)
-    if job.reconnect_seconds is None:
-        _stream_file(conn, cap, first, slots, job.max_frames, abort_after, job.keep)
-    else:
+    if live:
         _stream_live(conn, cap, first, slots[:LIVE_SLOTS], job, abort_after)
+    else:
+        # a stream of known length (a file on a web server) must be read to its end
+        expected = _frame_count(count) if job.reconnect_seconds is not None else 0
+        _stream_file(conn, cap, first, slots, job.max_frames, abort_after, job.keep,
+                     expected)
 
 
 def _stream_file(conn: Connection, cap: cv2.VideoCapture, first: np.ndarray,
                  slots: np.ndarray, max_frames: int | None, abort_after: int | None,
-                 keep: tuple[int, ...] | None = None) -> None:
+                 keep: tuple[int, ...] | None = None, expected: int = 0) -> None:
     """Every frame in order, or only the frames numbered in `keep` (the others are decoded
     but neither converted nor handed over); waits for a free slot (the caller sets the
-    pace)."""
+    pace). `expected` > 0: the source's length; ending more than one frame short of it
+    (a network connection that broke) is an error, not the end."""
     free = list(range(len(slots)))
     wanted, last = (None, 0) if keep is None else (set(keep), max(keep))
     sent = number = 0   # frames handed over, frames decoded
@@ -359,7 +368,8 @@ def _stream_file(conn: Connection, cap: cv2.VideoCapture, first: np.ndarray,
             if number > last:
                 break
             if number > 1 and not cap.grab():
-                break
+                _short(conn, number, expected)
+                return
             continue
         if sent == abort_after:
             _abort()
@@ -371,12 +381,22 @@ def _stream_file(conn: Connection, cap: cv2.VideoCapture, first: np.ndarray,
         else:
             ok, image = cap.read(slots[k])
             if not ok or image is None:
-                break
+                _short(conn, number, expected)
+                return
             if image.ctypes.data != slots[k].ctypes.data:  # not decoded in place
                 _fit(_as_bgr(image), slots[k])
         conn.send(("frame", k, cap.get(cv2.CAP_PROP_POS_MSEC), time.monotonic(), 0, 0))
         sent += 1
     conn.send(("end",))
+
+
+def _short(conn: Connection, number: int, expected: int) -> None:
+    """Frame `number` could not be decoded: the end, unless a source of `expected` frames
+    (AVI counts may be one off) broke before it."""
+    if expected and number < expected:
+        conn.send(("error", f"connection lost before the end ({expected} frames)"))
+    else:
+        conn.send(("end",))
 
 
 def _stream_live(conn: Connection, cap: cv2.VideoCapture, first: np.ndarray,
@@ -407,7 +427,8 @@ def _stream_live(conn: Connection, cap: cv2.VideoCapture, first: np.ndarray,
         if not ok or image is None:
             length = _frame_count(cap.get(cv2.CAP_PROP_FRAME_COUNT))
             cap.release()
-            if 0 < length <= decoded + 1:                 # all of it (AVI counts may be 1 off)
+            # all of it (AVI counts may be 1 off), or a local file (`--live yes`)
+            if 0 < length <= decoded + 1 or job.reconnect_seconds is None:
                 ended = True
                 continue
             reopened = _connect(job.target, job.reconnect_seconds)
@@ -465,31 +486,34 @@ class VideoReader:
     `reconnect_seconds`, and (after yielding the frames decoded so far) when the decoder
     dies or a live source is lost. A file that merely ends early just ends the iteration
     (`frames_read`). `dropped_frames` and `reconnects` count what a live source lost.
-    `keep` (files only): hand over only the frames with these numbers (1-based; the child
+    `keep` (not live): hand over only the frames with these numbers (1-based; the child
     still decodes the others, to stay exact on any codec, but skips their conversion and
-    hand-over), each with its number as `index`.
+    hand-over), each with its number as `index`. `live` is `--live auto|yes|no`
+    (`sources.live_request`); `self.live` is what was decided once the source was open.
     """
 
     def __init__(self, source: str | os.PathLike | Source, max_frames: int | None = None,
-                 reconnect_seconds: float = 30.0, keep: Iterable[int] | None = None) -> None:
+                 reconnect_seconds: float = 30.0, keep: Iterable[int] | None = None,
+                 live: str = "auto") -> None:
         self.source = source if isinstance(source, Source) else parse_source(source)
         self.path = self.source.spec
         if max_frames is not None and max_frames < 1:
             raise InputError(f"max frames must be >= 1 (got {max_frames})")
         if not (reconnect_seconds >= 0 and math.isfinite(reconnect_seconds)):
             raise InputError(f"reconnect seconds must be >= 0 (got {reconnect_seconds})")
-        if not self.source.live:
+        if self.source.is_file:
             check_file(self.path)
+        request = live_request(self.source, live)
         self._keep = None if keep is None else tuple(sorted(set(keep)))
-        if self._keep is not None and (self.source.live or not self._keep
+        if self._keep is not None and (request is not False or not self._keep
                                        or self._keep[0] < 1):
-            raise ValueError("keep: frame numbers >= 1 of a file")
+            raise ValueError("keep: frame numbers >= 1 of a source not read live")
         self.frames_read = 0
         self.dropped_frames = 0
         self.reconnects = 0
-        live = self.source.live
+        remote = not self.source.is_file
         self._stall_s = STALL_TIMEOUT_S + (reconnect_seconds + 2 * LIVE_IO_TIMEOUT_S
-                                           if live else 0.0)
+                                           if remote else 0.0)
         self._rings: list[mmap.mmap] = []  # 0 or 1 ring, freed by _shutdown
         self._log: IO[bytes] = tempfile.TemporaryFile(prefix="vtrack-decoder.")
         self._done = False
@@ -497,9 +521,12 @@ class VideoReader:
         try:
             with contextlib.suppress(OSError):  # a child dead at start-up is reported below
                 self._conn.send(_Job(self.source.target, max_frames,
-                                     reconnect_seconds if live else None, self._keep))
+                                     reconnect_seconds if remote else None, self._keep,
+                                     request))
             self.info = self._handshake()
-            self._clock = LiveClock(self.info.fps) if live else FrameClock(self.info.fps)
+            self.live = self.info.live
+            self._clock = (LiveClock(self.info.fps) if self.live
+                           else FrameClock(self.info.fps))
             self._pending = self._check(self._receive())  # a crash before frame 1 fails here
         except BaseException:
             self.close()
@@ -531,7 +558,7 @@ class VideoReader:
             theirs.close()
 
     def _handshake(self) -> VideoInfo:
-        _, width, height, fps, count = self._check(self._receive())
+        _, width, height, fps, count, live = self._check(self._receive())
         size = RING_SLOTS * height * width * 3
         fd = _ring_file(size)
         try:
@@ -540,7 +567,7 @@ class VideoReader:
                 send_handle(self._conn, fd, self._proc.pid)
         finally:
             os.close(fd)
-        return _video_info(self.path, width, height, fps, count, self.source.live)
+        return _video_info(self.path, width, height, fps, count, live)
 
     def _receive(self) -> tuple | None:
         """The child's next message, or None if it died."""
@@ -583,7 +610,7 @@ class VideoReader:
                 self._conn.send(slot)
             self.frames_read += 1
             number = self.frames_read if self._keep is None else self._keep[self.frames_read - 1]
-            if self.source.live:
+            if self.live:
                 self.reconnects = reconnects
                 t = self._clock(pos_ms, wall_s, reconnects)
             else:
