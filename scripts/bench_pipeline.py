@@ -135,7 +135,8 @@ def stage_costs(video: Path, cfg: config.AppConfig, frames: int) -> tuple[StageT
     n = 0
     with reader:
         for frame in reader:
-            dets = det.detect(frame.image, lambda m, t=frame.time: predict(t, m))
+            fg = det.segment(frame.image)
+            dets = det.locate(fg, predict(frame.time, fg.motion))
             update(frame.index, frame.time, dets.centers, dets.boxes, dets.changed)
             n += 1
     return times, n

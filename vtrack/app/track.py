@@ -140,9 +140,11 @@ class TrackJob:
         # closing: the worker stops with the loop, also when the loop body raises
         with contextlib.closing(segmented(self.reader, detector)) as frames:
             for frame, fg in frames:
-                # The tracker predicts once the detector knows the camera's motion, so that
-                # blobs holding several predicted vehicles can be divided among them.
-                dets = detector.locate(fg, lambda motion: tracker.predict(frame.time, motion))
+                # The tracker predicts on every frame (the detector's warm-up included) once
+                # the camera's motion is known; the detector divides a blob holding several
+                # predicted vehicles among them.
+                predicted = tracker.predict(frame.time, fg.motion)
+                dets = detector.locate(fg, predicted)
                 ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes,
                                     dets.changed)
                 self.frames = frame.index
