@@ -260,7 +260,7 @@ def _reacquire(tracks: TrackTable, track_boxes: np.ndarray, mt: np.ndarray, md: 
     the detection could neither update the track nor start a new one. A tentative track
     takes part too: when the visible part of a vehicle jumps (entering behind an occluder),
     a second track on the same vehicle would otherwise start beside it."""
-    waiting = ~tracks.killed
+    waiting = np.ones(len(tracks), dtype=bool)
     waiting[duplicates] = False
     waiting[mt] = False
     lost = np.flatnonzero(waiting)

@@ -53,8 +53,6 @@ class Initiator:
         table.hist_s = np.zeros((k, 3, 2))
         table.count = np.zeros(k, dtype=int)
         table.hitmask = np.zeros(k, dtype=np.int64)
-        table.misses = np.zeros(k, dtype=int)
-        table.killed = np.zeros(k, dtype=bool)
         table.standing = np.zeros(k, dtype=bool)
         table.id = np.zeros(k, dtype=int)
         table.uid = np.arange(self.next_uid, self.next_uid + k)
@@ -66,13 +64,12 @@ class Initiator:
 
 def record_hits(tracks: TrackTable, hit: np.ndarray, window: int, stand_speed: float
                 ) -> None:
-    """Shift this frame's hits into each track's hit mask and count its misses; a confirmed
+    """Shift this frame's hits into each track's hit mask; a confirmed
     track without a detection whose speed plus its standard deviation is under stand_speed
     (box scales/s; a track whose speed is not yet known does not qualify) is standing: it
     is held where it stopped (velocity and acceleration set to 0) until a detection takes
     it up again."""
     tracks.hitmask = ((tracks.hitmask << 1) | hit) & ((1 << window) - 1)
-    tracks.misses = np.where(hit, 0, tracks.misses + 1)
     sd = np.sqrt(tracks.P[:, 2, 2] + tracks.P[:, 3, 3])
     slow = np.hypot(tracks.x[:, 2], tracks.x[:, 3]) + sd < stand_speed * tracks.scale
     stops = (tracks.id > 0) & ~hit & ~tracks.standing & slow
@@ -80,20 +77,33 @@ def record_hits(tracks: TrackTable, hit: np.ndarray, window: int, stand_speed: f
     tracks.standing = (tracks.standing | stops) & ~hit
 
 
-def fate(tracks: TrackTable, t: float, width: int, height: int, cfg: TrackerConfig
-         ) -> tuple[np.ndarray, np.ndarray]:
-    """(inside, alive): whether part of each predicted box is still in the image, and whether
-    the track is within its coasting limit (and not a duplicate)."""
-    m = cfg.edge_margin * tracks.scale[:, None] + tracks.size / 2
-    x, y = tracks.x[:, 0], tracks.x[:, 1]
-    inside = ((x >= -m[:, 0]) & (x <= width + m[:, 0])
-              & (y >= -m[:, 1]) & (y <= height + m[:, 1]))
-    lost_for = t - tracks.hist_t[:, 0]
-    limit = np.where(tracks.id > 0, np.where(tracks.standing, cfg.max_stand_seconds,
-                                             cfg.max_coast_seconds),
-                     cfg.tentative_coast_seconds)
-    alive = lost_for <= limit + 1e-9
-    return inside, alive & ~tracks.killed
+class Deleter:
+    """Decides which tracks end this frame: a track whose whole predicted box has left the
+    image (`edge_margin` box scales beyond it), one past its coasting limit
+    (`max_coast_seconds`; `max_stand_seconds` while standing; `tentative_coast_seconds`
+    before confirmation) and the duplicates of older tracks (associator.py)."""
+
+    def __init__(self, cfg: TrackerConfig, width: int, height: int) -> None:
+        self.cfg = cfg
+        self.width, self.height = width, height
+
+    def fate(self, tracks: TrackTable, t: float, duplicates: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """(inside, alive) (N,) each: whether part of each predicted box is still in the
+        image, and whether the track is within its coasting limit and not one of the
+        `duplicates` (indices). A track is kept where both hold."""
+        cfg = self.cfg
+        m = cfg.edge_margin * tracks.scale[:, None] + tracks.size / 2
+        x, y = tracks.x[:, 0], tracks.x[:, 1]
+        inside = ((x >= -m[:, 0]) & (x <= self.width + m[:, 0])
+                  & (y >= -m[:, 1]) & (y <= self.height + m[:, 1]))
+        lost_for = t - tracks.hist_t[:, 0]
+        limit = np.where(tracks.id > 0, np.where(tracks.standing, cfg.max_stand_seconds,
+                                                 cfg.max_coast_seconds),
+                         cfg.tentative_coast_seconds)
+        alive = lost_for <= limit + 1e-9
+        alive[duplicates] = False
+        return inside, alive
 
 
 class Confirmer:

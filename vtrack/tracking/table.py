@@ -32,8 +32,6 @@ class TrackTable:
     hist_s: np.ndarray     # (N, 3, 2) their stds
     count: np.ndarray      # (N,) detections so far, capped at 3 (for the differences)
     hitmask: np.ndarray    # (N,) bit i: detected i frames ago
-    misses: np.ndarray     # (N,) frames since the last detection
-    killed: np.ndarray     # (N,) a duplicate of an older track, deleted this frame
     standing: np.ndarray   # (N,) a standing vehicle held without detections (lifecycle.py)
     id: np.ndarray         # (N,) public id, 0 while tentative
     uid: np.ndarray        # (N,) internal id, unique for the run
@@ -109,7 +107,7 @@ _LAYOUT = {  # per-track shape and dtype of each column
     "ref_s": ((), float), "own": ((OWN, 2), float), "origin": ((4,), float),
     "last_box": ((4,), float), "hist_p": ((3, 2), float),
     "hist_t": ((3,), float), "hist_s": ((3, 2), float), "count": ((), int),
-    "hitmask": ((), np.int64), "misses": ((), int), "killed": ((), bool), "standing": ((), bool),
+    "hitmask": ((), np.int64), "standing": ((), bool),
     "id": ((), int),
     "uid": ((), int), "gap_p": ((2,), float), "gap_t": ((), float),
     "gap_seen": ((), float), "gap_road": ((), bool),

@@ -25,7 +25,7 @@ from vtrack.tracking.associator import Associator, ChangedShare, detection_sigma
 from vtrack.tracking.box_size import BoxSizeFilter, anchored, own_size, remember_size
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
-from vtrack.tracking.lifecycle import Confirmer, Initiator, fate, record_hits
+from vtrack.tracking.lifecycle import Confirmer, Deleter, Initiator, record_hits
 from vtrack.tracking.measurements import (border_cut, box_centre, measurement_model,
                                           shrunk)
 from vtrack.tracking.reporter import ON_COURSE_IOU, ROW_COLUMNS, RowReporter
@@ -71,6 +71,7 @@ class Tracker:
         self.associator = Associator(cfg, width, height)
         self.initiator = Initiator()
         self.confirmer = Confirmer(cfg, fps)
+        self.deleter = Deleter(cfg, width, height)
         self.reporter = RowReporter(cfg.max_coast_seconds, width, height,
                                     self.bank.model.transition if cfg.smooth_coasted else None)
         self.t_prev: float | None = None
@@ -120,7 +121,6 @@ class Tracker:
         tracks = self.tracks
         a = self.associator.associate(tracks, t, centers, boxes,
                                       changed if self.cfg.gap_labels else None)
-        tracks.killed[a.duplicates] = True
         innov = np.full(len(tracks), np.nan)
         predicted = tracks.boxes(self.width, self.height)[a.tracks]
         prior_x, prior_P = tracks.x.copy(), tracks.P.copy()
@@ -143,7 +143,7 @@ class Tracker:
         hit = np.concatenate([hit, np.ones(len(new), dtype=bool)])
         record_hits(tracks, hit, self.confirmer.window, self.cfg.stand_speed)
 
-        inside, alive = fate(tracks, t, self.width, self.height, self.cfg)
+        inside, alive = self.deleter.fate(tracks, t, a.duplicates)
         self.confirmer.confirm(tracks, hit, inside & alive)
         # A detected row shows the detection's box where it showed the whole vehicle (the
         # filtered box lags a vehicle's change of size); a re-acquired track's coasted rows
