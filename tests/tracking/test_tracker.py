@@ -343,8 +343,8 @@ def test_only_a_gap_between_pieces_is_a_record_to_hold(pieces, held):
     t = 31 / FPS
     b = np.array(pieces, dtype=float) + [100 + 120 * t, 170, 0, 0]
     tr.step(32, t, b[:, :2] + b[:, 2:] / 2, b, changed=_road)
-    assert tr.tracks.gap_t[0] == pytest.approx(t)       # the pieces were recorded ...
-    assert bool(tr.tracks.gap_road[0]) is held          # ... as a gap that may be road
+    assert tr.gaps.gap_t[0] == pytest.approx(t)         # the pieces were recorded ...
+    assert bool(tr.gaps.gap_road[0]) is held            # ... as a gap that may be road
 
 
 @pytest.mark.parametrize("confirm_motion,expect_track", [(0.3, False), (0.0, True)])
@@ -483,6 +483,6 @@ def test_coasted_tail_out_of_the_image_is_reported_only_on_the_vehicles_way(
     first = np.array([[100.0, 170.0, 40.0, 20.0]])
     s0, Ps0 = BoxSizeFilter(0.01, 0.08, 1.0, 0.997, (0.0, 1.0)).initial(first[:, 2:], 0.05)
     x0 = np.array([[120.0 + moved[0], 180.0 + moved[1], *velocity, 0.0, 0.0]])
-    table = Initiator().table(0.0, first, x0, np.eye(6)[None], s0, Ps0)
+    table = Initiator(8).table(0.0, first, x0, np.eye(6)[None], s0, Ps0)
     table.last_box = table.origin + np.array([*moved, *moved], dtype=float)
     assert leaves_on_its_way(table, 0) is reported

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vtrack.tracking.associator import points_in_boxes
+from vtrack.tracking.association import points_in_boxes
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.table import OWN, TrackTable
 
@@ -20,11 +20,12 @@ from vtrack.tracking.table import OWN, TrackTable
 class Initiator:
     """Starts tentative tracks on detections no track explains."""
 
-    def __init__(self) -> None:
+    def __init__(self, box_candidates: int) -> None:
+        """`box_candidates`: TrackerConfig.box_candidates."""
         self.next_uid = 0
+        self.box_candidates = box_candidates
 
-    @staticmethod
-    def select(centers: np.ndarray, used: np.ndarray, confirmed_boxes: np.ndarray
+    def select(self, centers: np.ndarray, used: np.ndarray, confirmed_boxes: np.ndarray
                ) -> np.ndarray:
         """The detections not `used` whose centre no confirmed track's box covers (a
         fragment of a tracked vehicle is not a new vehicle)."""
@@ -32,7 +33,7 @@ class Initiator:
         free[used] = False
         if len(confirmed_boxes) and free.any():
             idx = np.flatnonzero(free)
-            _, covered = points_in_boxes(centers[idx], confirmed_boxes)
+            _, covered = points_in_boxes(centers[idx], confirmed_boxes, self.box_candidates)
             free[idx[covered]] = False
         return np.flatnonzero(free)
 
@@ -57,8 +58,6 @@ class Initiator:
         table.id = np.zeros(k, dtype=int)
         table.uid = np.arange(self.next_uid, self.next_uid + k)
         self.next_uid += k
-        table.gap_p, table.gap_t = np.full((k, 2), np.nan), np.full(k, np.nan)
-        table.gap_seen, table.gap_road = np.full(k, np.nan), np.zeros(k, dtype=bool)
         return table
 
 

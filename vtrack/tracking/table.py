@@ -4,6 +4,7 @@ so that the filter bank, the associator and the lifecycle work on all tracks at 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import Any, ClassVar, Self
 
 import numpy as np
 
@@ -12,8 +13,41 @@ from vtrack.boxes import clip
 OWN = 9  # detections whose median gives a vehicle's own size (box_size.py)
 
 
+class Columns:
+    """Per-track columns (a struct of arrays, one row a track) owned by one role: the role
+    gives new rows their initial values and moves them with the camera (`warp`); the
+    tracker keeps every role's rows in step (`keep`, `append`). A subclass is a dataclass
+    of arrays whose shapes and dtypes per track are its LAYOUT."""
+
+    LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {}
+
+    @classmethod
+    def empty(cls) -> Self:
+        """No rows."""
+        return cls(**{name: np.zeros((0,) + shape, dtype=dtype)
+                      for name, (shape, dtype) in cls.LAYOUT.items()})
+
+    def __len__(self) -> int:
+        return len(getattr(self, next(iter(self.LAYOUT))))
+
+    def keep(self, mask: np.ndarray) -> None:
+        """Drop the rows where `mask` is False."""
+        for f in fields(self):
+            setattr(self, f.name, getattr(self, f.name)[mask])
+
+    def append(self, other: Self) -> None:
+        """Add the rows of `other` at the end."""
+        for f in fields(self):
+            setattr(self, f.name, np.concatenate([getattr(self, f.name),
+                                                  getattr(other, f.name)]))
+
+    def copy(self) -> Self:
+        """An independent copy."""
+        return type(self)(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
+
+
 @dataclass
-class TrackTable:
+class TrackTable(Columns):
     """Struct of arrays over tracks; `keep` and `append` act on every column together."""
 
     x: np.ndarray          # (N, 6) filtered [x, y, vx, vy, ax, ay] of the box centre
@@ -35,30 +69,15 @@ class TrackTable:
     standing: np.ndarray   # (N,) a standing vehicle held without detections (lifecycle.py)
     id: np.ndarray         # (N,) public id, 0 while tentative
     uid: np.ndarray        # (N,) internal id, unique for the run
-    gap_p: np.ndarray      # (N, 2) where a gap between two pieces was first seen
-    gap_t: np.ndarray      # (N,) and when (nan: the track's box holds one piece)
-    gap_seen: np.ndarray   # (N,) when the track's box last held several pieces
-    gap_road: np.ndarray   # (N,) that gap may be road: not body on any frame, not nested
 
-    @classmethod
-    def empty(cls) -> TrackTable:
-        """A table without tracks."""
-        return cls(**{name: np.zeros((0,) + shape, dtype=dtype)
-                      for name, (shape, dtype) in _LAYOUT.items()})
-
-    def __len__(self) -> int:
-        return len(self.x)
-
-    def keep(self, mask: np.ndarray) -> None:
-        """Drop the tracks where `mask` is False."""
-        for f in fields(self):
-            setattr(self, f.name, getattr(self, f.name)[mask])
-
-    def append(self, other: TrackTable) -> None:
-        """Add the tracks of `other` at the end."""
-        for f in fields(self):
-            setattr(self, f.name, np.concatenate([getattr(self, f.name),
-                                                  getattr(other, f.name)]))
+    LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {
+        "x": ((6,), float), "P": ((6, 6), float), "s": ((4,), float), "Ps": ((4, 4), float),
+        "mismatch_t": ((2,), float), "mismatch_sign": ((2,), float), "ref_p": ((2,), float),
+        "ref_s": ((), float), "own": ((OWN, 2), float), "origin": ((4,), float),
+        "last_box": ((4,), float), "hist_p": ((3, 2), float),
+        "hist_t": ((3,), float), "hist_s": ((3, 2), float), "count": ((), int),
+        "hitmask": ((), np.int64), "standing": ((), bool), "id": ((), int), "uid": ((), int),
+    }
 
     @property
     def size(self) -> np.ndarray:
@@ -88,7 +107,6 @@ class TrackTable:
             edges[:, :2] = edges[:, :2] @ A.T + b
             edges[:, 2:] = edges[:, 2:] @ A.T + b
         self.hist_p = self.hist_p @ A.T + b
-        self.gap_p = self.gap_p @ A.T + b
 
     @property
     def confirmed(self) -> np.ndarray:
@@ -100,15 +118,3 @@ class TrackTable:
         size = self.size
         return clip(np.hstack([self.x[:, :2] - size / 2, size]), width, height)
 
-
-_LAYOUT = {  # per-track shape and dtype of each column
-    "x": ((6,), float), "P": ((6, 6), float), "s": ((4,), float), "Ps": ((4, 4), float),
-    "mismatch_t": ((2,), float), "mismatch_sign": ((2,), float), "ref_p": ((2,), float),
-    "ref_s": ((), float), "own": ((OWN, 2), float), "origin": ((4,), float),
-    "last_box": ((4,), float), "hist_p": ((3, 2), float),
-    "hist_t": ((3,), float), "hist_s": ((3, 2), float), "count": ((), int),
-    "hitmask": ((), np.int64), "standing": ((), bool),
-    "id": ((), int),
-    "uid": ((), int), "gap_p": ((2,), float), "gap_t": ((), float),
-    "gap_seen": ((), float), "gap_road": ((), bool),
-}

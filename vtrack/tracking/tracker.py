@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 
 from vtrack.boxes import clip, intersection, paired_iou
 from vtrack.tracking.associator import Associator, ChangedShare, detection_sigma
+from vtrack.tracking.fragments import GapColumns
 from vtrack.tracking.box_size import BoxSizeFilter, anchored, own_size, remember_size
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
@@ -63,13 +64,14 @@ class Tracker:
         self.cfg = cfg
         self.width, self.height = width, height
         self.tracks = TrackTable.empty()
+        self.gaps = GapColumns.empty()   # the associator's fragment stage's record
         self.bank = FilterBank(cfg)
         self.sizes = BoxSizeFilter(cfg.size_psd, cfg.size_sigma, cfg.size_rate_seconds,
                                    cfg.size_gate_probability,
                                    (cfg.size_grow_seconds, cfg.size_shrink_seconds))
         self.field = ScaleField(width, height)
         self.associator = Associator(cfg, width, height)
-        self.initiator = Initiator()
+        self.initiator = Initiator(cfg.box_candidates)
         self.confirmer = Confirmer(cfg, fps)
         self.deleter = Deleter(cfg, width, height)
         self.reporter = RowReporter(cfg.max_coast_seconds, width, height,
@@ -102,6 +104,7 @@ class Tracker:
         tracks = self.tracks
         if motion is not None and len(tracks) and not np.allclose(motion, _IDENTITY):
             tracks.warp(motion)
+            self.gaps.warp(motion)
         growth = (self.field.log_rate(tracks.x[:, :2], tracks.x[:, 2:4])
                   if self.cfg.scale_field else np.zeros(len(tracks)))
         self.bank.predict(tracks, dt)
@@ -119,8 +122,9 @@ class Tracker:
         centers = np.asarray(centers, dtype=float).reshape(-1, 2)
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
         tracks = self.tracks
-        a = self.associator.associate(tracks, t, centers, boxes,
+        a = self.associator.associate(tracks, self.gaps, t, centers, boxes,
                                       changed if self.cfg.gap_labels else None)
+        self.gaps = a.gaps
         innov = np.full(len(tracks), np.nan)
         predicted = tracks.boxes(self.width, self.height)[a.tracks]
         prior_x, prior_P = tracks.x.copy(), tracks.P.copy()
@@ -158,6 +162,7 @@ class Tracker:
         keep = inside & alive
         self.bank.forget(tracks.uid[~keep])
         tracks.keep(keep)
+        self.gaps.keep(keep)
         hit, innov, det_of = hit[keep], innov[keep], det_of[keep]
         conf = tracks.id > 0
         return FrameTracks(ids=tracks.id[conf].copy(), boxes=filtered[keep][conf],
@@ -183,6 +188,7 @@ class Tracker:
         new = self.initiator.table(t, boxes, x0, P0, s0, Ps0)
         self.bank.start(new.uid, x0, var, scale)
         self.tracks.append(new)
+        self.gaps.append(GapColumns.new(len(boxes)))
 
     def _learn_scale(self, idx: np.ndarray, boxes: np.ndarray) -> None:
         """Feed the scale field with whole-vehicle boxes of confirmed tracks whose box
