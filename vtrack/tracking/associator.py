@@ -26,15 +26,10 @@ from vtrack.boxes import intersection, overlap_of_smaller, paired_iou
 from vtrack.tracking.association import assign, gated_pairs, points_in_boxes
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.fragments import ChangedShare, FragmentJoiner, GapColumns
-from vtrack.tracking.measurements import nested_centre
+from vtrack.tracking.measurements import detection_sigma, nested_centre
 from vtrack.tracking.table import TrackTable
 
 __all__ = ["Association", "Associator", "ChangedShare", "detection_sigma"]
-
-
-def detection_sigma(cfg: TrackerConfig, scale: np.ndarray) -> np.ndarray:
-    """Std (px) of a detected centre for boxes of scale `scale` (px): scale-free, >= 0.5."""
-    return np.maximum(cfg.detection_sigma * scale, 0.5)
 
 
 @dataclass

@@ -27,9 +27,49 @@ textbook position-only filter, and consistent (ANEES in the chi-square band; tes
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
+from vtrack.tracking.config import TrackerConfig
+from vtrack.tracking.table import TrackTable
+
+if TYPE_CHECKING:
+    from vtrack.tracking.sizes import SizeUpdate
+
 MODES = ("finite-difference", "finite-difference-white", "position")
+
+
+def detection_sigma(cfg: TrackerConfig, scale: np.ndarray) -> np.ndarray:
+    """Std (px) of a detected centre for boxes of scale `scale` (px): scale-free, >= 0.5."""
+    return np.maximum(cfg.detection_sigma * scale, 0.5)
+
+
+class CentreMeasurement:
+    """A track's detected box as a measurement of its centre filter: the centre the box
+    gives (`box_centre`, from what the size role decided it showed), pushed into the
+    track's last three detections, and seed 001's measurement of those
+    (`measurement_model`, TrackerConfig.measurement)."""
+
+    def __init__(self, cfg: TrackerConfig) -> None:
+        self.cfg = cfg
+
+    def measure(self, tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray, t: float,
+                sizes: SizeUpdate) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(z, H, R, mask) of tracks idx from their detected boxes (K, 4) at time t; records
+        the detection in each track's history and last box."""
+        pos_var = tracks.P[idx][:, [0, 1], [0, 1]]
+        sigma = detection_sigma(self.cfg, np.sqrt(sizes.size.prod(axis=1)))[:, None]
+        centers, var = box_centre(tracks.x[idx, :2], pos_var, sizes.size, sizes.size_var,
+                                  boxes, sizes.whole, sigma, sizes.cut)
+        for hist, newest in ((tracks.hist_s, np.sqrt(var)), (tracks.hist_p, centers),
+                             (tracks.hist_t, t)):
+            hist[idx, 1:] = hist[idx, :-1]  # fancy indexing copies before the write
+            hist[idx, 0] = newest
+        tracks.count[idx] = np.minimum(tracks.count[idx] + 1, 3)
+        tracks.last_box[idx] = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
+        return measurement_model(tracks.hist_p[idx], tracks.hist_t[idx], tracks.count[idx],
+                                 tracks.hist_s[idx], self.cfg.measurement)
 
 
 def difference_operator(h1: np.ndarray, h2: np.ndarray) -> np.ndarray:
