@@ -12,6 +12,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from vtrack.boxes import centre
+
 
 def nearest_pairs(queries: np.ndarray, points: np.ndarray, radius: float, k: int
                   ) -> tuple[np.ndarray, np.ndarray]:
@@ -97,8 +99,8 @@ def points_in_boxes(points: np.ndarray, boxes: np.ndarray, candidates: int
                     ) -> tuple[np.ndarray, np.ndarray]:
     """(box, point) index pairs with the point inside the box (x, y, w, h), among each box's
     `candidates` nearest points (a box holds a few vehicle centres at most)."""
-    centre = boxes[:, :2] + boxes[:, 2:] / 2
+    c = centre(boxes)
     radius = float(np.hypot(boxes[:, 2], boxes[:, 3]).max()) / 2 + 1e-9 if len(boxes) else 0.0
-    bi, pi = nearest_pairs(centre, points, radius, candidates)
-    inside = np.all(np.abs(points[pi] - centre[bi]) <= boxes[bi, 2:] / 2, axis=1)
+    bi, pi = nearest_pairs(c, points, radius, candidates)
+    inside = np.all(np.abs(points[pi] - c[bi]) <= boxes[bi, 2:] / 2, axis=1)
     return bi[inside], pi[inside]

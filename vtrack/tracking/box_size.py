@@ -41,6 +41,8 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.special import ndtri
+
+from vtrack.boxes import edges as box_edges
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import WienerVelocity
 from vtrack.tracking.table import TrackTable
@@ -181,6 +183,5 @@ def anchored(tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray, t: float,
     shift, grow = v * dt, size_rates * dt / 2
     expected = np.where(np.hstack([moving, moving]),
                         np.abs(np.hstack([shift - grow, shift + grow])), 0.0)
-    edges = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
-    moved = np.abs(edges - tracks.last_box[idx])
+    moved = np.abs(box_edges(boxes) - tracks.last_box[idx])
     return ((expected > 1.0) & (moved < ANCHOR_SHARE * expected)).any(axis=1)

@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from vtrack.boxes import overlap_of_smaller
+from vtrack.boxes import centre, overlap_of_smaller
 from vtrack.tracking.association import points_in_boxes
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.table import Columns, TrackTable
@@ -102,7 +102,7 @@ class FragmentJoiner:
                 boxes[parts[0]] = [*x0, *(x1 - x0)]
                 keep[parts[1:]] = False
             boxes = boxes[keep]
-            centers = boxes[:, :2] + boxes[:, 2:] / 2
+            centers = centre(boxes)
         gaps.gap_seen[held] = t
         holding = gaps.gap_road & (t - gaps.gap_seen <= cfg.split_hold_seconds + 1e-9)
         gaps.gap_t[(~held & ~holding) | split] = np.nan

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from vtrack.boxes import edges
 from vtrack.tracking.association import points_in_boxes
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.table import OWN, TrackTable
@@ -47,7 +48,7 @@ class Initiator:
         table.mismatch_t, table.mismatch_sign = np.full((k, 2), np.nan), np.zeros((k, 2))
         table.ref_p, table.ref_s = np.zeros((k, 2)), np.full(k, np.nan)
         table.own = np.full((k, OWN, 2), np.nan)
-        table.origin = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
+        table.origin = edges(boxes)
         table.last_box = table.origin.copy()
         table.hist_p = np.zeros((k, 3, 2))
         table.hist_t = np.full((k, 3), t)

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from vtrack.boxes import edges, on_border
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.table import TrackTable
 
@@ -67,7 +68,7 @@ class CentreMeasurement:
             hist[idx, 1:] = hist[idx, :-1]  # fancy indexing copies before the write
             hist[idx, 0] = newest
         tracks.count[idx] = np.minimum(tracks.count[idx] + 1, 3)
-        tracks.last_box[idx] = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
+        tracks.last_box[idx] = edges(boxes)
         return measurement_model(tracks.hist_p[idx], tracks.hist_t[idx], tracks.count[idx],
                                  tracks.hist_s[idx], self.cfg.measurement)
 
@@ -246,6 +247,5 @@ def nested_centre(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: 
 
 def border_cut(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
     """(K, 2, 2): which edges (axis x low/high) of boxes (x, y, w, h) lie on the image
-    border, where the vehicle may go on beyond the picture."""
-    lo, hi = boxes[:, :2], boxes[:, :2] + boxes[:, 2:]
-    return np.stack([lo <= 0.5, hi >= np.array([width, height]) - 0.5], axis=2)
+    border (within half a pixel), where the vehicle may go on beyond the picture."""
+    return on_border(boxes, width, height)

@@ -46,6 +46,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from vtrack.boxes import from_centre, in_image
 from vtrack.estimation.kalman import smooth_gap
 from vtrack.tracking.table import TrackTable
 
@@ -172,17 +173,13 @@ class RowReporter:
                        x_prior, P_prior, x_post)
         moved = {}
         for c, xs in zip(stretch, x, strict=True):
-            before = np.concatenate([c.x[:2] - c.size / 2, c.size])
-            after = np.concatenate([xs[:2] - c.size / 2, c.size])
-            if self._in_image(before) and self._in_image(after):
+            before, after = from_centre(c.x[:2], c.size), from_centre(xs[:2], c.size)
+            if in_image(before, self.width, self.height) and in_image(after, self.width,
+                                                                      self.height):
                 moved[c.frame] = after
         for r in rows:
             if r[6] < 1.0 and int(r[0]) in moved:
                 r[2:6] = moved[int(r[0])]
-
-    def _in_image(self, box: np.ndarray) -> bool:
-        return bool(box[0] >= 0 and box[1] >= 0 and box[0] + box[2] <= self.width
-                    and box[1] + box[3] <= self.height)
 
 
 class _Step:

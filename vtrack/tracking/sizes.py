@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from vtrack.boxes import intersection
+from vtrack.boxes import centre, intersection, scale
 from vtrack.tracking.box_size import BoxSizeFilter, anchored, own_size, remember_size
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.measurements import border_cut, detection_sigma, shrunk
@@ -94,7 +94,7 @@ class Sizes:
         if cfg.own_size:                                                           # 2
             expected, spread = own_size(tracks.own[idx], self.field.k(tracks.x[idx, :2]))
             expected[partial] = np.nan
-            remember_size(tracks, idx, boxes, self.field.k(boxes[:, :2] + boxes[:, 2:] / 2),
+            remember_size(tracks, idx, boxes, self.field.k(centre(boxes)),
                           cut.any(axis=1) | partial)
         # A vehicle receding (its box shrinking: the scene's perspective and the size
         # filter's rates) faster than its size estimate follows: the size starts again
@@ -123,10 +123,10 @@ class Sizes:
         if len(idx) == 0:
             return
         all_boxes = tracks.boxes(self.width, self.height)
-        centre = all_boxes[:, :2] + all_boxes[:, 2:] / 2
+        centres = centre(all_boxes)
         # Boxes that overlap have centres within the largest diagonal (k-d tree pairs).
-        near = cKDTree(centre).query_ball_point(
-            centre[idx], float(np.hypot(all_boxes[:, 2], all_boxes[:, 3]).max()))
+        near = cKDTree(centres).query_ball_point(
+            centres[idx], float(np.hypot(all_boxes[:, 2], all_boxes[:, 3]).max()))
         qi = np.repeat(np.arange(len(idx)), [len(n) for n in near])
         pj = np.fromiter((j for n in near for j in n), dtype=int, count=len(qi))
         other = pj != idx[qi]
@@ -134,8 +134,8 @@ class Sizes:
         touching = qi[intersection(all_boxes[idx[qi]], all_boxes[pj]) > 0]
         alone = np.bincount(touching, minlength=len(idx)) == 0
         idx, boxes = idx[alone], boxes[alone]
-        p = boxes[:, :2] + boxes[:, 2:] / 2
-        sc = np.sqrt(boxes[:, 2] * boxes[:, 3])
+        p = centre(boxes)
+        sc = scale(boxes)
         ref = tracks.ref_s[idx]
         far = np.hypot(*(p - tracks.ref_p[idx]).T) >= 0.5 * np.fmin(sc, ref)
         pair = np.isfinite(ref) & far

@@ -8,7 +8,7 @@ from typing import Any, ClassVar, Self
 
 import numpy as np
 
-from vtrack.boxes import clip
+from vtrack.boxes import clip, from_centre
 
 OWN = 9  # detections whose median gives a vehicle's own size (box_size.py)
 
@@ -115,6 +115,5 @@ class TrackTable(Columns):
 
     def boxes(self, width: int, height: int) -> np.ndarray:
         """Boxes (x, y, w, h) centred on the filtered positions, clipped to the image."""
-        size = self.size
-        return clip(np.hstack([self.x[:, :2] - size / 2, size]), width, height)
+        return clip(from_centre(self.x[:, :2], self.size), width, height)
 

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.boxes import clip, paired_iou
+from vtrack.boxes import clip, from_centre, paired_iou
+from vtrack.boxes import scale as box_scale
 from vtrack.tracking.associator import Associator, ChangedShare
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
@@ -105,8 +106,7 @@ class Tracker:
         self.bank.predict(tracks, dt)
         self.sizes.predict(tracks, dt, growth)
         conf = tracks.id > 0
-        size = tracks.size[conf]
-        return np.hstack([tracks.x[conf, :2] - size / 2, size])
+        return from_centre(tracks.x[conf, :2], tracks.size[conf])
 
     def update(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
                changed: ChangedShare | None = None) -> FrameTracks:
@@ -176,7 +176,7 @@ class Tracker:
     def _start(self, t: float, centers: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         """Append tentative tracks on these detections (assimilated by _assimilate next);
         returns their indices."""
-        scale = np.sqrt(boxes[:, 2] * boxes[:, 3])
+        scale = box_scale(boxes)
         var = np.repeat(detection_sigma(self.cfg, scale)[:, None] ** 2, 2, axis=1)
         x0, P0 = self.bank.prior(centers, scale)
         s0, Ps0 = self.sizes.initial(boxes)

@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from vtrack.boxes import centre
 from vtrack.vision.background import Mog2Background, estimate_background
 from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi
 from vtrack.vision.changed import ChangedMap
@@ -312,7 +313,7 @@ class MotionDetector:
         ref_boxes, boxes = boxes, transform_boxes(fg.camera, boxes)  # -> this frame's pixels
         if cfg.stabilise_robust:   # the fit follows the camera: the sway is a few pixels
             boxes = border_edges_kept(ref_boxes, boxes, self.width, self.height)
-        return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas, fg.motion,
+        return Detections(centre(boxes), boxes, areas, fg.motion,
                           ChangedMap(fg.labels, self._sx, self._sy, fg.camera))
 
     def _split(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
