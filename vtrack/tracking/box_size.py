@@ -39,13 +39,19 @@ outline noise, where it shows the whole vehicle:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy.special import ndtri
 
 from vtrack.boxes import edges as box_edges
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import WienerVelocity
-from vtrack.tracking.table import TrackTable
+
+if TYPE_CHECKING:
+    from vtrack.tracking.table import TrackTable
+
+OWN = 9  # detections whose median gives a vehicle's own size (`own_size`)
 
 OWN_SPREAD = 0.5    # ln spread of a vehicle's detected sides beyond which its size is unknown
 ANCHOR_SHARE = 0.3  # an edge moving less than this share of its expected motion stays put

@@ -18,14 +18,17 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from vtrack.boxes import centre, overlap_of_smaller
 from vtrack.tracking.association import points_in_boxes
 from vtrack.tracking.config import TrackerConfig
-from vtrack.tracking.table import Columns, TrackTable
+from vtrack.tracking.columns import Columns
+
+if TYPE_CHECKING:
+    from vtrack.tracking.table import TrackTable
 
 # boxes (K, 4) x, y, w, h -> (K,) the share of each that the detector saw change (nan: none)
 ChangedShare = Callable[[np.ndarray], np.ndarray]

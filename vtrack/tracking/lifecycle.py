@@ -10,12 +10,41 @@ predicted box has left the image, or as the duplicate of an older track.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
 import numpy as np
 
 from vtrack.boxes import edges
 from vtrack.tracking.association import points_in_boxes
 from vtrack.tracking.config import TrackerConfig
-from vtrack.tracking.table import OWN, TrackTable
+from vtrack.tracking.columns import Columns
+
+if TYPE_CHECKING:
+    from vtrack.tracking.table import TrackTable
+
+
+@dataclass
+class LifeColumns(Columns):
+    """Per track: the lifecycle's record."""
+
+    origin: np.ndarray     # (N, 4) the first detected box's edges x0, y0, x1, y1
+    last_box: np.ndarray   # (N, 4) the last detected box's edges
+    hitmask: np.ndarray    # (N,) bit i: detected i frames ago
+    standing: np.ndarray   # (N,) a standing vehicle held without detections (record_hits)
+    id: np.ndarray         # (N,) public id, 0 while tentative
+    uid: np.ndarray        # (N,) internal id, unique for the run
+
+    LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {
+        "origin": ((4,), float), "last_box": ((4,), float), "hitmask": ((), np.int64),
+        "standing": ((), bool), "id": ((), int), "uid": ((), int)}
+
+    def warp(self, m: np.ndarray) -> None:
+        """Box corners map by m (the boxes stay axis-aligned)."""
+        A, b = m[:, :2], m[:, 2]
+        for e in (self.origin, self.last_box):
+            e[:, :2] = e[:, :2] @ A.T + b
+            e[:, 2:] = e[:, 2:] @ A.T + b
 
 
 class Initiator:
@@ -38,28 +67,15 @@ class Initiator:
             free[idx[covered]] = False
         return np.flatnonzero(free)
 
-    def table(self, t: float, boxes: np.ndarray, x0: np.ndarray, P0: np.ndarray,
-              s0: np.ndarray, Ps0: np.ndarray) -> TrackTable:
-        """Tentative tracks with priors (x0, P0) and box sizes (s0, Ps0), first seen as
-        `boxes` (x, y, w, h) at time t (their first detection is not assimilated yet)."""
+    def new(self, boxes: np.ndarray) -> LifeColumns:
+        """The rows of tentative tracks first seen as `boxes` (x, y, w, h): no id yet, a
+        new uid each."""
         k = len(boxes)
-        table = TrackTable.empty()
-        table.x, table.P, table.s, table.Ps = x0, P0, s0, Ps0
-        table.mismatch_t, table.mismatch_sign = np.full((k, 2), np.nan), np.zeros((k, 2))
-        table.ref_p, table.ref_s = np.zeros((k, 2)), np.full(k, np.nan)
-        table.own = np.full((k, OWN, 2), np.nan)
-        table.origin = edges(boxes)
-        table.last_box = table.origin.copy()
-        table.hist_p = np.zeros((k, 3, 2))
-        table.hist_t = np.full((k, 3), t)
-        table.hist_s = np.zeros((k, 3, 2))
-        table.count = np.zeros(k, dtype=int)
-        table.hitmask = np.zeros(k, dtype=np.int64)
-        table.standing = np.zeros(k, dtype=bool)
-        table.id = np.zeros(k, dtype=int)
-        table.uid = np.arange(self.next_uid, self.next_uid + k)
+        origin = edges(boxes)
+        uid = np.arange(self.next_uid, self.next_uid + k)
         self.next_uid += k
-        return table
+        return LifeColumns(origin, origin.copy(), np.zeros(k, dtype=np.int64),
+                           np.zeros(k, dtype=bool), np.zeros(k, dtype=int), uid)
 
 
 def record_hits(tracks: TrackTable, hit: np.ndarray, window: int, stand_speed: float

@@ -27,16 +27,18 @@ textbook position-only filter, and consistent (ANEES in the chi-square band; tes
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from vtrack.boxes import edges, on_border
+from vtrack.tracking.columns import Columns, warp_scale
 from vtrack.tracking.config import TrackerConfig
-from vtrack.tracking.table import TrackTable
 
 if TYPE_CHECKING:
     from vtrack.tracking.sizes import SizeUpdate
+    from vtrack.tracking.table import TrackTable
 
 MODES = ("finite-difference", "finite-difference-white", "position")
 
@@ -44,6 +46,31 @@ MODES = ("finite-difference", "finite-difference-white", "position")
 def detection_sigma(cfg: TrackerConfig, scale: np.ndarray) -> np.ndarray:
     """Std (px) of a detected centre for boxes of scale `scale` (px): scale-free, >= 0.5."""
     return np.maximum(cfg.detection_sigma * scale, 0.5)
+
+
+@dataclass
+class HistoryColumns(Columns):
+    """Per track: the last three detected centres the measurement differences."""
+
+    hist_p: np.ndarray     # (N, 3, 2) last three detected centres, newest first
+    hist_t: np.ndarray     # (N, 3) their times
+    hist_s: np.ndarray     # (N, 3, 2) their stds
+    count: np.ndarray      # (N,) detections so far, capped at 3 (for the differences)
+
+    LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {
+        "hist_p": ((3, 2), float), "hist_t": ((3,), float), "hist_s": ((3, 2), float),
+        "count": ((), int)}
+
+    @classmethod
+    def new(cls, k: int, t: float) -> HistoryColumns:
+        """The rows of k tracks born at time t: no detection yet."""
+        return cls(np.zeros((k, 3, 2)), np.full((k, 3), t), np.zeros((k, 3, 2)),
+                   np.zeros(k, dtype=int))
+
+    def warp(self, m: np.ndarray) -> None:
+        """Centres map by m, their stds scale by sqrt|det A|."""
+        self.hist_s = self.hist_s * warp_scale(m)
+        self.hist_p = self.hist_p @ m[:, :2].T + m[:, 2]
 
 
 class CentreMeasurement:

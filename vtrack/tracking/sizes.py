@@ -21,16 +21,47 @@ It holds the box size filter (box_size.py) and the scene's scale field (scale_fi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from vtrack.boxes import centre, intersection, scale
-from vtrack.tracking.box_size import BoxSizeFilter, anchored, own_size, remember_size
+from vtrack.tracking.box_size import (OWN, BoxSizeFilter, anchored, own_size,
+                                      remember_size)
+from vtrack.tracking.columns import Columns, warp_scale
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.measurements import border_cut, detection_sigma, shrunk
 from vtrack.tracking.scale_field import ScaleField
-from vtrack.tracking.table import TrackTable
+
+if TYPE_CHECKING:
+    from vtrack.tracking.table import TrackTable
+
+
+@dataclass
+class SizeColumns(Columns):
+    """Per track: the box size filter's state, the own-size memory, the scale field's
+    reference box."""
+
+    s: np.ndarray          # (N, 4) [ln w, ln h, d ln w/dt, d ln h/dt] of the box (box_size.py)
+    Ps: np.ndarray         # (N, 4, 4) its covariance
+    mismatch_t: np.ndarray     # (N, 2) since when detections disagree with the size
+    mismatch_sign: np.ndarray  # (N, 2) in which direction (+1 larger, -1 smaller, 0 none)
+    own: np.ndarray        # (N, OWN, 2) ln((w, h) / k) of the last detections (nan: none)
+    ref_p: np.ndarray      # (N, 2) a whole-vehicle box's centre kept for the scale field
+    ref_s: np.ndarray      # (N,) and its scale (nan: none yet)
+
+    LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {
+        "s": ((4,), float), "Ps": ((4, 4), float), "mismatch_t": ((2,), float),
+        "mismatch_sign": ((2,), float), "own": ((OWN, 2), float), "ref_p": ((2,), float),
+        "ref_s": ((), float)}
+
+    def warp(self, m: np.ndarray) -> None:
+        """Sizes scale by sqrt|det A| (their logs shift); the scale field's reference
+        stays where it was seen."""
+        scale = warp_scale(m)
+        self.s[:, :2] += np.log(scale)
+        self.own += np.log(scale)
 
 
 @dataclass
@@ -58,6 +89,14 @@ class Sizes:
     def initial(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(s, Ps) of new tracks from their first boxes (K, 4)."""
         return self.filter.initial(boxes[:, 2:], self.cfg.init_size_rate_sigma)
+
+    def new(self, boxes: np.ndarray) -> SizeColumns:
+        """The rows of tracks born on boxes (K, 4): their size from the box, its rates
+        unknown, no mismatch, no own size, no reference."""
+        k = len(boxes)
+        s0, Ps0 = self.initial(boxes)
+        return SizeColumns(s0, Ps0, np.full((k, 2), np.nan), np.zeros((k, 2)),
+                           np.full((k, OWN, 2), np.nan), np.zeros((k, 2)), np.full(k, np.nan))
 
     def growth(self, tracks: TrackTable, idx: np.ndarray | slice = slice(None)
                ) -> np.ndarray:

@@ -27,7 +27,7 @@ from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
 from vtrack.tracking.fragments import GapColumns
 from vtrack.tracking.lifecycle import Confirmer, Deleter, Initiator, record_hits
-from vtrack.tracking.measurements import CentreMeasurement, detection_sigma
+from vtrack.tracking.measurements import CentreMeasurement, HistoryColumns, detection_sigma
 from vtrack.tracking.reporter import ON_COURSE_IOU, ROW_COLUMNS, RowReporter
 from vtrack.tracking.sizes import Sizes
 from vtrack.tracking.table import TrackTable
@@ -178,10 +178,10 @@ class Tracker:
         returns their indices."""
         scale = box_scale(boxes)
         var = np.repeat(detection_sigma(self.cfg, scale)[:, None] ** 2, 2, axis=1)
-        x0, P0 = self.bank.prior(centers, scale)
-        s0, Ps0 = self.sizes.initial(boxes)
-        new = self.initiator.table(t, boxes, x0, P0, s0, Ps0)
-        self.bank.start(new.uid, x0, var, scale)
+        new = TrackTable(centre=self.bank.prior(centers, scale),
+                         history=HistoryColumns.new(len(boxes), t),
+                         box_size=self.sizes.new(boxes), life=self.initiator.new(boxes))
+        self.bank.start(new.uid, new.x, var, scale)
         n_old = len(self.tracks)
         self.tracks.append(new)
         self.gaps.append(GapColumns.new(len(boxes)))
