@@ -136,28 +136,44 @@ class Tracker:
         # delete (decide), confirm
         inside, alive = self.deleter.fate(tracks, t, a.duplicates)
         self.confirmer.confirm(tracks, hit, inside & alive)
-        # report: a detected row shows the detection's box where it showed the whole
-        # vehicle (the filtered box lags a vehicle's change of size); a re-acquired track's
-        # coasted rows are reported only if the detection confirms where the prediction put it
+        # report
         filtered = tracks.boxes(W, H)
-        shown = filtered.copy()
-        shown[a.tracks[whole]] = clip(a.boxes[a.detections][whole], W, H)
-        on_course = np.ones(len(tracks), dtype=bool)
-        on_course[a.tracks] = paired_iou(predicted, shown[a.tracks]) >= ON_COURSE_IOU
+        shown, on_course = self._shown(filtered, predicted, a.tracks,
+                                       a.boxes[a.detections], whole)
         rows = self.reporter.rows(frame, t, tracks, shown, hit, on_course, inside, alive,
                                   prior_x, prior_P)
         # delete (apply)
         keep = inside & alive
         self._delete(~keep)
-        conf = tracks.id > 0
         det_of = np.full(len(keep), -1)
         det_of[a.tracks], det_of[new] = a.detections, started
         nis = np.full(len(keep), np.nan)
         nis[a.tracks], nis[new] = innov, innov_new
-        return FrameTracks(ids=tracks.id[conf].copy(), boxes=filtered[keep][conf],
-                           coasted=~hit[keep][conf], states=tracks.x[conf].copy(),
-                           covariances=tracks.P[conf].copy(), innovations=nis[keep][conf],
-                           rows=rows, detection_of=det_of[keep][conf],
+        return self._frame_tracks(rows, filtered[keep], hit[keep], nis[keep], det_of[keep])
+
+    def _shown(self, filtered: np.ndarray, predicted: np.ndarray, idx: np.ndarray,
+               boxes: np.ndarray, whole: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The box each track's row shows, and whether each detected track is on course.
+        A detected row shows the detection's box (clipped) where it showed the whole
+        vehicle (the filtered box lags a vehicle's change of size), else the filtered box;
+        tracks idx detected as `boxes` are on course where their predicted box and the shown
+        one overlap with IoU >= ON_COURSE_IOU (a re-acquired track's coasted rows are
+        reported only then, reporter.py)."""
+        shown = filtered.copy()
+        shown[idx[whole]] = clip(boxes[whole], self.width, self.height)
+        on_course = np.ones(len(filtered), dtype=bool)
+        on_course[idx] = paired_iou(predicted, shown[idx]) >= ON_COURSE_IOU
+        return shown, on_course
+
+    def _frame_tracks(self, rows: np.ndarray, boxes: np.ndarray, hit: np.ndarray,
+                      nis: np.ndarray, det_of: np.ndarray) -> FrameTracks:
+        """The confirmed tracks after the frame (boxes, hit, nis, det_of over the kept
+        tracks)."""
+        tracks = self.tracks
+        conf = tracks.id > 0
+        return FrameTracks(ids=tracks.id[conf].copy(), boxes=boxes[conf], coasted=~hit[conf],
+                           states=tracks.x[conf].copy(), covariances=tracks.P[conf].copy(),
+                           innovations=nis[conf], rows=rows, detection_of=det_of[conf],
                            size_rates=self.sizes.rates(tracks, conf))
 
     def _assimilate(self, idx: np.ndarray, boxes: np.ndarray, t: float, split: np.ndarray
