@@ -1,17 +1,24 @@
 """Multi-target vehicle tracker: one constant-acceleration Kalman filter per vehicle, all
 stepped together as arrays through the shared core.
 
-The tracker is composed of roles, each in its own module:
-- the track table (table.py): every track's state as parallel arrays;
-- the filter bank (filter_bank.py): predict and update all tracks' centre filters;
-- the size role (sizes.py): every track's width and height with their rates (box_size.py)
-  and the scene's scale field (scale_field.py);
-- the associator (associator.py): fragments (fragments.py), gating and assignment, shared
-  blobs, re-acquisition;
-- the centre measurement (measurements.py): the nested-box centre and seed 001's finite
-  differences;
-- the lifecycle (lifecycle.py): initiator, confirmation, deleter;
-- the reporter (reporter.py): which MOT rows are final.
+`Tracker.update` is one page of role calls, in this order: associate, update sizes, measure
+centres, update centres, initiate (and assimilate the new tracks alike), record hits,
+decide deletions, confirm, report, delete. Each role is in its own module and owns its
+per-track columns (their initial values and their warp under camera motion); the track
+table (table.py) joins them:
+- the filter bank (filter_bank.py; CentreColumns x, P): predicts and updates all tracks'
+  centre filters;
+- the size role (sizes.py; SizeColumns s, Ps, mismatch_t, mismatch_sign, own, ref_p,
+  ref_s): every track's width and height with their rates (box_size.py) and the scene's
+  scale field (scale_field.py), behind one `update`;
+- the centre measurement (measurements.py; HistoryColumns hist_p, hist_t, hist_s, count):
+  the nested-box centre and seed 001's finite differences;
+- the associator (associator.py): fragments (fragments.py; GapColumns gap_p, gap_t,
+  gap_seen, gap_road, kept apart by the tracker), gating and assignment, shared blobs,
+  re-acquisition; it changes nothing and returns its decisions;
+- the lifecycle (lifecycle.py; LifeColumns origin, last_box, hitmask, standing, id, uid):
+  initiator, confirmer, deleter;
+- the reporter (reporter.py): which MOT rows are final, a state machine.
 """
 
 from __future__ import annotations
