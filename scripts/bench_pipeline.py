@@ -29,7 +29,7 @@ from vtrack.app.track import TrackJob, TrackOptions, track_video
 from vtrack.tracking.tracker import Tracker
 from vtrack.vision import detect as detect_module
 from vtrack.vision.detect import MotionDetector
-from vtrack.vision.video import VideoReader
+from vtrack.io.video import VideoReader
 
 
 # The stages `vtrack track` runs in its main thread; the rest run in the segment worker.

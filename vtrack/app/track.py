@@ -28,7 +28,7 @@ from vtrack.app.outputs import (DetectionsCsv, FrameTimes, Sink, TrackedFrame, T
 from vtrack.errors import InputError
 from vtrack.fileio import replace_dir, write_json
 from vtrack.tracking.tracker import FrameTracks, Tracker
-from vtrack.vision.sources import parse_source
+from vtrack.io.sources import parse_source
 
 
 def _warn(message: str) -> None:
@@ -92,7 +92,7 @@ class TrackJob:
         """Track the whole source; returns the summary (also on interruption or a lost
         source, then re-raised)."""
         from vtrack.vision.detect import MotionDetector
-        from vtrack.vision.video import VideoReader
+        from vtrack.io.video import VideoReader
 
         self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
                                   reconnect_seconds=self.opts.reconnect_seconds)
@@ -196,7 +196,7 @@ class TrackJob:
         (a second, supervised read of its start that hands over only the sampled frames),
         for the detector's background. A file that fails here gives what was read: the
         main read reports the failure."""
-        from vtrack.vision.video import VideoReader
+        from vtrack.io.video import VideoReader
 
         cfg = self.cfg.detector
         n = round(cfg.init_background_seconds * self.info.fps)
@@ -231,7 +231,7 @@ class TrackJob:
     def _open_writer(self) -> Any:
         if not self.opts.save_video:
             return None
-        from vtrack.vision.video_writer import open_video_writer
+        from vtrack.io.video_writer import open_video_writer
 
         writer = open_video_writer(self.out / "annotated.mp4", self.info.fps,
                                    (self.info.width, self.info.height))
