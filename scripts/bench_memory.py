@@ -51,7 +51,7 @@ def main() -> None:
     ap.add_argument("--count-line", action="append", default=[])
     args = ap.parse_args()
 
-    import vtrack.vision.video as video
+    import vtrack.io.video as video
     from vtrack.app import config
     from vtrack.app.track import TrackOptions, track_video
 

@@ -29,7 +29,7 @@ from vtrack.app.track import TrackJob, TrackOptions, track_video
 from vtrack.tracking.tracker import Tracker
 from vtrack.vision import detect as detect_module
 from vtrack.vision.detect import MotionDetector
-from vtrack.vision.video import VideoReader
+from vtrack.io.video import VideoReader
 
 
 # The stages `vtrack track` runs in its main thread; the rest run in the segment worker.
@@ -135,7 +135,8 @@ def stage_costs(video: Path, cfg: config.AppConfig, frames: int) -> tuple[StageT
     n = 0
     with reader:
         for frame in reader:
-            dets = det.detect(frame.image, lambda m, t=frame.time: predict(t, m))
+            fg = det.segment(frame.image)
+            dets = det.locate(fg, predict(frame.time, fg.motion))
             update(frame.index, frame.time, dets.centers, dets.boxes, dets.changed)
             n += 1
     return times, n

@@ -41,7 +41,7 @@ def estimated_shift(video: Path, robust: bool) -> np.ndarray:
     resolution) applied to the image centre, minus the centre; the run as `vtrack track`
     starts it (background samples from the first seconds, then every frame)."""
     from vtrack.vision.detect import DetectorConfig, MotionDetector
-    from vtrack.vision.video import VideoReader
+    from vtrack.io.video import VideoReader
 
     cfg = dataclasses.replace(DetectorConfig(), stabilise_robust=robust)
     with VideoReader(str(video)) as reader:

@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from vtrack.boxes import clip, intersection, iou, overlap_of_smaller, paired_iou
+from vtrack.boxes import (centre, clip, edges, from_centre, in_image, intersection, iou,
+                          on_border, overlap_of_smaller, paired_iou, scale)
 
 
 def test_paired_iou_of_hand_worked_pairs():
@@ -35,3 +36,22 @@ def test_clip_cuts_boxes_to_the_image():
     boxes = np.array([[-5, -5, 10, 10], [630, 350, 20, 20], [700, 0, 10, 10]], float)
     assert np.allclose(clip(boxes, 640, 360),
                        [[0, 0, 5, 5], [630, 350, 10, 10], [640, 0, 0, 10]])
+
+
+def test_centre_edges_scale_of_hand_worked_boxes():
+    b = np.array([[10, 20, 40, 10], [0, 0, 9, 4]], float)
+    assert np.array_equal(centre(b), [[30, 25], [4.5, 2]])
+    assert np.array_equal(edges(b), [[10, 20, 50, 30], [0, 0, 9, 4]])
+    assert np.array_equal(scale(b), [20, 6])
+    assert np.array_equal(from_centre(centre(b), b[:, 2:]), b)
+    assert np.array_equal(centre(b[0]), [30, 25])             # one box (4,)
+
+
+def test_in_image_and_on_border_of_a_100_x_50_picture():
+    b = np.array([[0, 0, 100, 50], [-1, 10, 20, 20], [80, 30, 20.4, 20], [10, 10, 5, 5]])
+    assert in_image(b, 100, 50).tolist() == [True, False, False, True]
+    cut = on_border(b, 100, 50)          # (box, axis x/y, low/high edge)
+    assert cut[0].all()
+    assert cut[1].tolist() == [[True, False], [False, False]]
+    assert cut[2].tolist() == [[False, True], [False, True]]
+    assert not cut[3].any()

@@ -38,3 +38,37 @@ def clip(boxes: np.ndarray, width: float, height: float) -> np.ndarray:
     x1 = np.clip(boxes[:, 0] + boxes[:, 2], 0, width)
     y1 = np.clip(boxes[:, 1] + boxes[:, 3], 0, height)
     return np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)
+
+
+def centre(boxes: np.ndarray) -> np.ndarray:
+    """(..., 2) centres of boxes (..., 4)."""
+    return boxes[..., :2] + boxes[..., 2:] / 2
+
+
+def edges(boxes: np.ndarray) -> np.ndarray:
+    """(..., 4) edges x0, y0, x1, y1 of boxes (..., 4) x, y, w, h."""
+    return np.concatenate([boxes[..., :2], boxes[..., :2] + boxes[..., 2:]], axis=-1)
+
+
+def from_centre(centres: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """(..., 4) boxes x, y, w, h of the given centres (..., 2) and sizes (..., 2)."""
+    return np.concatenate([centres - sizes / 2, sizes], axis=-1)
+
+
+def scale(boxes: np.ndarray) -> np.ndarray:
+    """(...,) box scale sqrt(w h), px: the unit of the tracker's scale-free parameters."""
+    return np.sqrt(boxes[..., 2] * boxes[..., 3])
+
+
+def in_image(boxes: np.ndarray, width: float, height: float) -> np.ndarray:
+    """(...,) whether each box (..., 4) lies wholly inside the image [0, width] x [0, height]."""
+    return ((boxes[..., 0] >= 0) & (boxes[..., 1] >= 0)
+            & (boxes[..., 0] + boxes[..., 2] <= width) & (boxes[..., 1] + boxes[..., 3] <= height))
+
+
+def on_border(boxes: np.ndarray, width: float, height: float, tol: float = 0.5
+              ) -> np.ndarray:
+    """(K, 2, 2): which edges (axis x, y; low, high) of boxes (K, 4) lie on the image
+    border, within `tol` px: where a vehicle may go on beyond the picture."""
+    lo, hi = boxes[:, :2], boxes[:, :2] + boxes[:, 2:]
+    return np.stack([lo <= tol, hi >= np.array([width, height]) - tol], axis=2)

@@ -167,6 +167,11 @@ def test_real_tracker_brief_occlusion_keeps_the_speed(tmp_path):
     gap = _real_tracker_run(scene, tmp_path / "gap", hidden=range(80, 90))
     assert len(clean) == len(gap) == 1
     a, b = float(clean[0]["speed_mean_kmh"]), float(gap[0]["speed_mean_kmh"])
-    print(f"true {3.6 * scene.vehicles[0].v0:.1f} km/h; clean {a}, with a 0.4 s gap {b}")
+    true_speed = 3.6 * scene.vehicles[0].v0
+    print(f"true {true_speed:.1f} km/h; clean {a}, with a 0.4 s gap {b}")
     assert abs(a - b) < 1.5
+    # Against the truth: 52.8 and 52.9 km/h for a true 58.0 when this was written (the
+    # speed of the filtered centre's ground point, analytics/vehicles.py); within 12 %.
+    for speed in (a, b):
+        assert abs(speed - true_speed) <= 0.12 * true_speed
     assert abs(float(clean[0]["speed_max_kmh"]) - float(gap[0]["speed_max_kmh"])) < 3.0

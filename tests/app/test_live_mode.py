@@ -19,7 +19,7 @@ import cv2
 import pytest
 
 from vtrack.cli import main
-from vtrack.vision.video import VideoReader
+from vtrack.io.video import VideoReader
 
 
 class RangeHandler(http.server.SimpleHTTPRequestHandler):

@@ -18,7 +18,7 @@ import pytest
 
 from vtrack.cli import main
 from vtrack.evaluation.mot import read_mot
-from vtrack.vision.video import ABORT_HOOK_ENV
+from vtrack.io.video import ABORT_HOOK_ENV
 
 ROOT = Path(__file__).resolve().parents[2]
 ENV = dict(os.environ, PYTHONPATH=str(ROOT))
@@ -178,7 +178,7 @@ def test_truncated_file_is_one_error_line_with_the_decoders_reason(synth_video, 
     exactly one line, FFmpeg's own reason quoted in it, no output folder."""
     import cv2
 
-    from vtrack.vision.video_writer import OpenCVWriter
+    from vtrack.io.video_writer import OpenCVWriter
 
     cap = cv2.VideoCapture(str(synth_video(0) / "video.avi"))
     whole = tmp_path / "whole.mp4"

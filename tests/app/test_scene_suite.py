@@ -21,7 +21,7 @@ from vtrack.analytics.lines import count_rows
 from vtrack.analytics.regions import CountLine
 from vtrack.app.config import AppConfig
 from vtrack.app.track import TrackOptions, track_video
-from vtrack.evaluation.mot import evaluate, read_mot
+from vtrack.evaluation.mot import evaluate, evaluate_arrays, read_mot
 from vtrack.sim.clip import render_default, scored_count_lines
 
 SHARED_VIDEOS = Path(__file__).resolve().parents[3] / "shared" / "videos"
@@ -48,6 +48,17 @@ MEASURED = {
     ("mast", 0): (0.094, 0.297),
     ("side", 0): (-0.338, 0.326),
     ("junction", 0): (-0.030, 0.393),
+}
+
+# scene, seed: the recall (share of the ground truth's boxes matched), measured on the commit
+# that added it: an empty tracks.csv scores MOTA 0, above the side and junction MOTA floors,
+# and a count error within their allowance on junction, but recall 0 (and IDF1 0). The
+# floor is MARGIN below.
+RECALL = {
+    ("overhead", 0): 0.991,
+    ("mast", 0): 0.221,
+    ("side", 0): 0.389,
+    ("junction", 0): 0.401,
 }
 
 # clip: tolerance around its hand range (handcounts.json); measured on the same commit:
@@ -94,11 +105,18 @@ def test_synthetic_preset_holds_its_scores(tmp_path, scene, seed):
           f"true {truth}, error {error} (at most {COUNT_ERRORS[scene, seed]} + margin)")
     assert scores["mota"] >= mota - MARGIN
     assert scores["idf1"] >= idf1 - MARGIN
+    assert scores["recall"] >= RECALL[scene, seed] - MARGIN
     # the suite counts peers and the truth from rows by the rule vtrack counts by
     rows = read_mot(tmp_path / "run" / "tracks.csv")
     assert count_rows(rows, lines) == counts
     margin = COUNT_MARGIN if COUNT_ERRORS[scene, seed] else 0
     assert error <= COUNT_ERRORS[scene, seed] + margin
+    # better than counting nothing (an empty tracks.csv's error is the true total)
+    assert error < int(np.sum(truth))
+    # the floors themselves: an empty tracks.csv fails them
+    empty = evaluate_arrays(read_mot(src / "gt.csv"), np.zeros((0, 10)))
+    assert empty["recall"] < RECALL[scene, seed] - MARGIN
+    assert empty["idf1"] < idf1 - MARGIN
 
 
 @pytest.mark.parametrize("clip", sorted(REAL))

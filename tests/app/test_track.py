@@ -23,14 +23,23 @@ def _track(video: Path, out: Path, *extra: str) -> dict:
     return json.loads((out / "summary.json").read_text())
 
 
+# seed: (MOTA, IDF1) measured with the default configuration on the commit that set these
+# floors (before, one floor for all: MOTA 0.85, IDF1 0.80). The run is deterministic; the
+# floors sit ACCURACY_MARGIN below, for changes elsewhere that move a box or two (a real
+# regression of the tracker costs more).
+ACCURACY = {0: (0.975, 0.960), 1: (0.996, 0.998), 2: (0.865, 0.870)}
+ACCURACY_MARGIN = 0.025
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_synthetic_accuracy(synth_video, tmp_path, seed):
     src = synth_video(seed)
     _track(src / "video.avi", tmp_path)
     scores = evaluate(src / "gt.csv", tmp_path / "tracks.csv")
     print(f"seed {seed}: {scores}")
-    assert scores["mota"] >= 0.85
-    assert scores["idf1"] >= 0.80
+    mota, idf1 = ACCURACY[seed]
+    assert scores["mota"] >= mota - ACCURACY_MARGIN
+    assert scores["idf1"] >= idf1 - ACCURACY_MARGIN
 
 
 def test_vehicle_behind_occluder_keeps_its_id(synth_video, tmp_path):

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vtrack.vision.video import VideoReader
+from vtrack.io.video import VideoReader
 
 
 def _frames(video: Path) -> np.ndarray:

@@ -29,7 +29,7 @@ def test_gated_pairs_is_the_mahalanobis_gate():
     dets = np.array([[3.0, 0.0], [0.0, 3.0], [101.0, 0.0]])
     var = np.ones((1, 2))
     ti, di, cost = gated_pairs(pred, P, dets, 9.21, 50.0,
-                               lambda t, d: (dets[d], np.repeat(var, len(d), axis=0)))
+                               lambda t, d: (dets[d], np.repeat(var, len(d), axis=0)), 8)
     # (3, 0) vs S = diag(5, 2): d2 = 1.8 (in); (0, 3): d2 = 4.5 (in); (101, 0): 0.5 (in)
     got = {(int(t), int(d)): c for t, d, c in zip(ti, di, cost, strict=True)}
     assert set(got) == {(0, 0), (0, 1), (1, 2)}

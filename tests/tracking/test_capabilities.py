@@ -96,8 +96,10 @@ def test_vehicle_receding_fast_shows_its_detected_box():
 def _one_track(velocity, velocity_std, last_box, t_last):
     """A track table holding one track moving at `velocity` (px/s), last detected at
     t_last with edges `last_box` (x0, y0, x1, y1)."""
-    tracks = TrackTable(**{name: np.zeros((1,) + column.shape[1:], column.dtype)
-                           for name, column in vars(TrackTable.empty()).items()})
+    tracks = TrackTable.empty()
+    for group in tracks.groups():
+        for name, (shape, dtype) in group.LAYOUT.items():
+            setattr(group, name, np.zeros((1,) + shape, dtype))
     tracks.x[0, 2:4] = velocity
     tracks.P[0] = np.diag([4.0, 4.0, *np.square(velocity_std), 100.0, 100.0])
     tracks.last_box[0], tracks.hist_t[0] = last_box, t_last

@@ -5,10 +5,13 @@ import numpy as np
 import pytest
 
 from vtrack.estimation.kalman import kf_update
-from vtrack.tracking.box_size import BoxSizeFilter
+from vtrack.tracking.filter_bank import CentreColumns
 from vtrack.tracking.lifecycle import Initiator
-from vtrack.tracking.measurements import difference_operator, finite_difference_measurement
+from vtrack.tracking.measurements import (HistoryColumns, difference_operator,
+                                          finite_difference_measurement)
 from vtrack.tracking.reporter import leaves_on_its_way
+from vtrack.tracking.sizes import Sizes
+from vtrack.tracking.table import TrackTable
 from vtrack.tracking.tracker import Tracker, TrackerConfig
 
 W, H, FPS = 640, 360, 25.0
@@ -343,8 +346,8 @@ def test_only_a_gap_between_pieces_is_a_record_to_hold(pieces, held):
     t = 31 / FPS
     b = np.array(pieces, dtype=float) + [100 + 120 * t, 170, 0, 0]
     tr.step(32, t, b[:, :2] + b[:, 2:] / 2, b, changed=_road)
-    assert tr.tracks.gap_t[0] == pytest.approx(t)       # the pieces were recorded ...
-    assert bool(tr.tracks.gap_road[0]) is held          # ... as a gap that may be road
+    assert tr.gaps.gap_t[0] == pytest.approx(t)         # the pieces were recorded ...
+    assert bool(tr.gaps.gap_road[0]) is held            # ... as a gap that may be road
 
 
 @pytest.mark.parametrize("confirm_motion,expect_track", [(0.3, False), (0.0, True)])
@@ -367,7 +370,7 @@ def test_tentative_track_keeps_a_detection_that_jumps_inside_its_box():
         box = np.array([[x - 50, y - 20, 100, 40]])
         tr.step(n, t, box[:, :2] + box[:, 2:] / 2, box)
         assert len(tr) == 1
-    assert tr.tracks.misses[0] == 0
+    assert tr.tracks.hitmask[0] & 1                     # detected on the last frame
 
 
 def _rows_of_vehicles_leaving():
@@ -481,8 +484,8 @@ def test_coasted_tail_out_of_the_image_is_reported_only_on_the_vehicles_way(
     detection (within 45 degrees, over at least one box scale), as a vehicle lost before the
     edge keeps going; junk that veered off (a merged or piecewise blob) is not."""
     first = np.array([[100.0, 170.0, 40.0, 20.0]])
-    s0, Ps0 = BoxSizeFilter(0.01, 0.08, 1.0, 0.997, (0.0, 1.0)).initial(first[:, 2:], 0.05)
     x0 = np.array([[120.0 + moved[0], 180.0 + moved[1], *velocity, 0.0, 0.0]])
-    table = Initiator().table(0.0, first, x0, np.eye(6)[None], s0, Ps0)
+    table = TrackTable(CentreColumns(x0, np.eye(6)[None]), HistoryColumns.new(1, 0.0),
+                       Sizes(TrackerConfig(), W, H).new(first), Initiator(8).new(first))
     table.last_box = table.origin + np.array([*moved, *moved], dtype=float)
     assert leaves_on_its_way(table, 0) is reported

@@ -162,7 +162,7 @@ def test_blob_holding_two_predicted_vehicles_is_split():
     img[100:120, 60:120] = (40, 40, 200)     # car A 60 x 20
     img[120:140, 70:130] = (200, 60, 40)     # car B right below, touching
     predicted = np.array([[60, 100, 60, 20], [70, 120, 60, 20]], float)
-    for priors, expect in ((lambda m: predicted, 2), (None, 1)):
+    for priors, expect in ((predicted, 2), (None, 1)):
         det = MotionDetector(DetectorConfig(warmup_frames=5, min_motion=0.0), 320, 240)
         for f in mog_frames:
             det.detect(f)

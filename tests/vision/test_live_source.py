@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from vtrack.errors import InputError
-from vtrack.vision.sources import parse_source
-from vtrack.vision.video import LiveClock, VideoReader
+from vtrack.io.sources import parse_source
+from vtrack.io.video import LiveClock, VideoReader
 
 W, H, BITS = 128, 64, 16  # stamped frames: BITS black/white 16x16 squares = the frame number
 

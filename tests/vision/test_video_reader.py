@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from vtrack.errors import InputError
-from vtrack.vision.video import ABORT_HOOK_ENV, FrameClock, VideoReader, probe
+from vtrack.io.video import ABORT_HOOK_ENV, FrameClock, VideoReader, probe
 
 VIDEOS = Path(__file__).resolve().parents[2].parent / "shared" / "videos"
 HIGHWAY = VIDEOS / "bgslibrary_video03_highway.avi"

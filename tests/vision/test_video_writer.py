@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from vtrack.vision import video_writer
-from vtrack.vision.video_writer import OpenCVWriter, PyAVWriter, open_video_writer
+from vtrack.io import video_writer
+from vtrack.io.video_writer import OpenCVWriter, PyAVWriter, open_video_writer
 
 av = pytest.importorskip("av")
 FPS, W, H = 25.0, 96, 64

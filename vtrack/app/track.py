@@ -29,7 +29,7 @@ from vtrack.app.outputs import (DetectionsCsv, FrameTimes, Sink, TrackedFrame, T
 from vtrack.errors import InputError
 from vtrack.fileio import replace_dir, write_json
 from vtrack.tracking.tracker import FrameTracks, Tracker
-from vtrack.vision.sources import parse_source
+from vtrack.io.sources import parse_source
 
 
 def _warn(message: str) -> None:
@@ -49,7 +49,7 @@ class TrackOptions:
     bin_seconds: float = 60.0                 # time bin of counts.csv
     reconnect_seconds: float = 30.0   # a live source silent this long is lost (exit 2)
     flush_seconds: float = 10.0       # outputs brought up to date at least this often
-    live: str = "auto"                # --live auto|yes|no (vision.sources.live_request)
+    live: str = "auto"                # --live auto|yes|no (io.sources.live_request)
     warn: Callable[[str], None] = _warn
 
 
@@ -98,7 +98,7 @@ class TrackJob:
         """Track the whole source; returns the summary (also on interruption or a lost
         source, then re-raised)."""
         from vtrack.vision.detect import MotionDetector
-        from vtrack.vision.video import VideoReader
+        from vtrack.io.video import VideoReader
 
         self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
                                   reconnect_seconds=self.opts.reconnect_seconds,
@@ -152,9 +152,11 @@ class TrackJob:
         # closing: the worker stops with the loop, also when the loop body raises
         with contextlib.closing(segmented(self.reader, detector)) as frames:
             for frame, fg in frames:
-                # The tracker predicts once the detector knows the camera's motion, so that
-                # blobs holding several predicted vehicles can be divided among them.
-                dets = detector.locate(fg, lambda motion: tracker.predict(frame.time, motion))
+                # The tracker predicts on every frame (the detector's warm-up included) once
+                # the camera's motion is known; the detector divides a blob holding several
+                # predicted vehicles among them.
+                predicted = tracker.predict(frame.time, fg.motion)
+                dets = detector.locate(fg, predicted)
                 ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes,
                                     dets.changed)
                 self.frames = frame.index
@@ -206,7 +208,7 @@ class TrackJob:
         read live (a second, supervised read of its start that hands over only the sampled
         frames), for the detector's background. A file that fails here gives what was read: the
         main read reports the failure."""
-        from vtrack.vision.video import VideoReader
+        from vtrack.io.video import VideoReader
 
         cfg = self.cfg.detector
         n = round(cfg.init_background_seconds * self.info.fps)
@@ -242,7 +244,7 @@ class TrackJob:
     def _open_writer(self) -> Any:
         if not self.opts.save_video:
             return None
-        from vtrack.vision.video_writer import open_video_writer
+        from vtrack.io.video_writer import open_video_writer
 
         writer = open_video_writer(self.out / "annotated.mp4", self.info.fps,
                                    (self.info.width, self.info.height))

@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Parse, filter, write (vtrack.filtering.filter_files)."""
-    from vtrack.filtering import filter_files
+    """Parse, filter, write (vtrack.app.filter.filter_files)."""
+    from vtrack.app.filter import filter_files
 
     return filter_files(args.config, args.measurements, args.out, args.rerun, args.report)

@@ -37,7 +37,7 @@ def first_frame_jpeg(video: str) -> tuple[bytes, int, int]:
     """The first decoded frame of VIDEO as JPEG bytes, and its width and height."""
     import cv2
 
-    from vtrack.vision.video import VideoReader
+    from vtrack.io.video import VideoReader
 
     with VideoReader(video, max_frames=1, live="no", reconnect_seconds=10) as reader:
         frame = next(iter(reader), None)
@@ -52,7 +52,7 @@ def first_frame_jpeg(video: str) -> tuple[bytes, int, int]:
 def run(args: argparse.Namespace) -> int:
     from vtrack.setup import config_io
     from vtrack.setup.server import SetupServer
-    from vtrack.vision.sources import parse_source
+    from vtrack.io.sources import parse_source
 
     source = parse_source(args.video)
     folder = Path(args.video).parent if source.is_file else Path.cwd()

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from vtrack.analytics.regions import parse_cli_line
 from vtrack.errors import InputError
-from vtrack.vision.sources import LIVE_MODES, parse_source
+from vtrack.io.sources import LIVE_MODES, parse_source
 
 NAME = "track"
 HELP = "track vehicles in a video file, stream (rtsp/http/https) or camera (cam:N)"

@@ -252,7 +252,7 @@ def _first_frame(run: Run) -> tuple[str | None, str]:
     if not video.is_absolute() and not video.exists():
         video = run.dir / video
     try:
-        from vtrack.vision.video import VideoReader
+        from vtrack.io.video import VideoReader
 
         with VideoReader(video, max_frames=1) as reader:
             frame = next(iter(reader), None)

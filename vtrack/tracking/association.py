@@ -12,11 +12,14 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from vtrack.boxes import centre
 
-def nearest_pairs(queries: np.ndarray, points: np.ndarray, radius: float, k: int = 8
+
+def nearest_pairs(queries: np.ndarray, points: np.ndarray, radius: float, k: int
                   ) -> tuple[np.ndarray, np.ndarray]:
     """(query, point) index pairs: each query's k nearest points within `radius`, found with a
-    k-d tree in one vectorised query (no Python loop over queries)."""
+    k-d tree in one vectorised query (no Python loop over queries); a point beyond the k
+    nearest is not paired even within the radius."""
     e = np.empty(0, dtype=int)
     if len(queries) == 0 or len(points) == 0:
         return e, e
@@ -31,22 +34,21 @@ def nearest_pairs(queries: np.ndarray, points: np.ndarray, radius: float, k: int
 def gated_pairs(pred: np.ndarray, P: np.ndarray, dets: np.ndarray, gate: float,
                 max_radius: float | np.ndarray,
                 pair_measurement: Callable[[np.ndarray, np.ndarray],
-                                           tuple[np.ndarray, np.ndarray]]
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                                           tuple[np.ndarray, np.ndarray]],
+                candidates: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Candidate (track, detection) pairs with squared Mahalanobis distance d2 <= gate.
 
     pred (T, 2) predicted positions with covariances P (T, 2, 2), dets (D, 2) detection
     centres; pair_measurement(ti, di) gives each pair's measured position z (K, 2) and its
-    variances var (K, 2), so nu = z - pred and S = P + diag(var). Each track's 8 nearest
-    detections within its max_radius (T,) are the candidates (a k-d tree query).
+    variances var (K, 2), so nu = z - pred and S = P + diag(var). Each track's `candidates`
+    nearest detections within its max_radius (T,) are the candidates (a k-d tree query).
     Returns track indices, detection indices and the cost d2 + ln det S of each pair.
     """
     if len(pred) == 0:
         e = np.empty(0, dtype=int)
         return e, e, np.empty(0)
     max_radius = np.broadcast_to(np.asarray(max_radius, dtype=float), (len(pred),))
-    # a gate holds a few detections at most
-    ti, di = nearest_pairs(pred, dets, float(np.max(max_radius)))
+    ti, di = nearest_pairs(pred, dets, float(np.max(max_radius)), candidates)
     near = np.hypot(*(dets[di] - pred[ti]).T) <= max_radius[ti]
     ti, di = ti[near], di[near]
     if len(ti) == 0:
@@ -91,3 +93,14 @@ def assign(ti: np.ndarray, di: np.ndarray, cost: np.ndarray, n_tracks: int, n_de
         out_t.append(rows[r[ok]])
         out_d.append(cols[k[ok]])
     return np.concatenate(out_t), np.concatenate(out_d)
+
+
+def points_in_boxes(points: np.ndarray, boxes: np.ndarray, candidates: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(box, point) index pairs with the point inside the box (x, y, w, h), among each box's
+    `candidates` nearest points (a box holds a few vehicle centres at most)."""
+    c = centre(boxes)
+    radius = float(np.hypot(boxes[:, 2], boxes[:, 3]).max()) / 2 + 1e-9 if len(boxes) else 0.0
+    bi, pi = nearest_pairs(c, points, radius, candidates)
+    inside = np.all(np.abs(points[pi] - c[bi]) <= boxes[bi, 2:] / 2, axis=1)
+    return bi[inside], pi[inside]

@@ -39,11 +39,19 @@ outline noise, where it shows the whole vehicle:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy.special import ndtri
+
+from vtrack.boxes import edges as box_edges
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import WienerVelocity
-from vtrack.tracking.table import TrackTable
+
+if TYPE_CHECKING:
+    from vtrack.tracking.table import TrackTable
+
+OWN = 9  # detections whose median gives a vehicle's own size (`own_size`)
 
 OWN_SPREAD = 0.5    # ln spread of a vehicle's detected sides beyond which its size is unknown
 ANCHOR_SHARE = 0.3  # an edge moving less than this share of its expected motion stays put
@@ -181,6 +189,5 @@ def anchored(tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray, t: float,
     shift, grow = v * dt, size_rates * dt / 2
     expected = np.where(np.hstack([moving, moving]),
                         np.abs(np.hstack([shift - grow, shift + grow])), 0.0)
-    edges = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
-    moved = np.abs(edges - tracks.last_box[idx])
+    moved = np.abs(box_edges(boxes) - tracks.last_box[idx])
     return ((expected > 1.0) & (moved < ANCHOR_SHARE * expected)).any(axis=1)

@@ -112,6 +112,35 @@ class TrackerConfig:
         "shadow is body (one vehicle, not split); under it the gap is road, and a road gap "
         "that moves with the track on a second frame splits it at once; read only once the "
         "vehicle has moved its own length since its first detection (associator.py)"))
+    split_span: float = field(default=1.2, metadata=_h(
+        "pieces in one confirmed track's box that together span more than this many times "
+        "the track's box (width or height) are separate vehicles at once (associator.py)"))
+    gap_follow_share: float = field(default=0.5, metadata=_h(
+        "a gap between two pieces that has moved at least this share of the track's travel "
+        "since it appeared moved with the vehicles: several vehicles, not an occluder's gap"))
+    nested_share: float = field(default=0.9, metadata=_h(
+        "a piece lying this share of its area within another is a part of it (a car's "
+        "windows in its body): no gap between them"))
+    duplicate_overlap: float = field(default=0.5, metadata=_h(
+        "tracks whose centres share one detection and whose boxes overlap by more than this "
+        "share of the smaller box follow one vehicle: the younger ones are duplicates"))
+    small_in_blob: float = field(default=0.25, metadata=_h(
+        "the oldest of such tracks whose box covers under this share of the shared blob "
+        "follows a smaller vehicle seen over a larger one (a car beside a truck)"))
+    blob_fit_iou: float = field(default=0.5, metadata=_h(
+        "... and the track whose box matches the blob with at least this IoU (the best) "
+        "takes it, none deleted"))
+    reacquire_area: float = field(default=2.0, metadata=_h(
+        "a track left without a detection takes a left-over detection inside its box whose "
+        "area is at most this many times its box's (larger: a merge of several)"))
+    gate_candidates: int = field(default=8, metadata=_h(
+        "detections nearest each track considered by the gate (a k-d tree query): a gate "
+        "holds a few detections at most; a further one in the gate is not considered"))
+    box_candidates: int = field(default=8, metadata=_h(
+        "points nearest a box's centre tested for lying inside it (pieces in a track's box, "
+        "tracks' centres in a blob, left-over detections in a lost track's box, new "
+        "detections in a confirmed box): a box holds a few vehicle centres at most; a "
+        "further one inside it is not considered"))
     edge_margin: float = field(default=0.0, metadata=_h(
         "a track is deleted once its whole predicted box is this far outside the image, box "
         "scales (a vehicle half out of view keeps its track)"))
@@ -132,6 +161,16 @@ class TrackerConfig:
                 raise ValueError(f"tracker.{name} must be in (0, 1)")
         if not 0 < self.confirm_fraction <= 1:
             raise ValueError("tracker.confirm_fraction must be in (0, 1]")
+        for name in ("split_span", "reacquire_area"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"tracker.{name} must be positive")
+        for name in ("gap_follow_share", "nested_share", "duplicate_overlap", "small_in_blob",
+                     "blob_fit_iou"):
+            if not 0 < getattr(self, name) <= 1:
+                raise ValueError(f"tracker.{name} must be in (0, 1]")
+        for name in ("gate_candidates", "box_candidates"):
+            if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
+                raise ValueError(f"tracker.{name} must be an integer >= 1")
         if not 0 < self.gap_changed_share <= 1:
             raise ValueError("tracker.gap_changed_share must be in (0, 1]")
         for name in ("confirm_motion", "edge_margin", "size_grow_seconds", "stand_speed",

@@ -17,16 +17,40 @@ the result back, so there is one copy of every track's state.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from vtrack.estimation.filters import GaussianFilter
 from vtrack.filter_kinds import make_filter
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import ConstantAcceleration, position_measurement
+from vtrack.tracking.columns import Columns
 from vtrack.tracking.config import TrackerConfig
-from vtrack.tracking.table import TrackTable
 
+if TYPE_CHECKING:
+    from vtrack.tracking.table import TrackTable
+
+
+@dataclass
+class CentreColumns(Columns):
+    """The centre filters' state per track."""
+
+    x: np.ndarray          # (N, 6) filtered [x, y, vx, vy, ax, ay] of the box centre
+    P: np.ndarray          # (N, 6, 6) its covariance
+
+    LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {
+        "x": ((6,), float), "P": ((6, 6), float)}
+
+    def warp(self, m: np.ndarray) -> None:
+        """Positions map by m; velocities, accelerations and the covariance by A
+        (P' = T P T', T = I3 (x) A)."""
+        A, b = m[:, :2], m[:, 2]
+        T = np.zeros((6, 6))
+        T[0:2, 0:2] = T[2:4, 2:4] = T[4:6, 4:6] = A
+        self.x = self.x @ T.T
+        self.x[:, :2] += b
+        self.P = T @ self.P @ T.T
 
 
 class FilterBank:
@@ -39,7 +63,7 @@ class FilterBank:
         # Adaptive kinds: one core filter object per track (by uid) on the position rows.
         self._objects: dict[int, GaussianFilter] = {}
 
-    def prior(self, centers: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def prior(self, centers: np.ndarray, scale: np.ndarray) -> CentreColumns:
         """(x0, P0) of new tracks before their first detection: centred on it with a
         position spread of the box scale (K,), unknown velocity and acceleration (in box
         scales per second); the first update brings the position to the detection's."""
@@ -50,7 +74,7 @@ class FilterBank:
                                         cfg.init_accel_sigma, cfg.init_accel_sigma])
         P0 = np.zeros((len(centers), 6, 6))
         P0[:, np.arange(6), np.arange(6)] = sd**2
-        return x0, P0
+        return CentreColumns(x0, P0)
 
     def start(self, uids: np.ndarray, x0: np.ndarray, var: np.ndarray, scale: np.ndarray
               ) -> None:

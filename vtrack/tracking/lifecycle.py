@@ -10,21 +10,52 @@ predicted box has left the image, or as the duplicate of an older track.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
 import numpy as np
 
-from vtrack.tracking.associator import points_in_boxes
+from vtrack.boxes import edges
+from vtrack.tracking.association import points_in_boxes
 from vtrack.tracking.config import TrackerConfig
-from vtrack.tracking.table import OWN, TrackTable
+from vtrack.tracking.columns import Columns
+
+if TYPE_CHECKING:
+    from vtrack.tracking.table import TrackTable
+
+
+@dataclass
+class LifeColumns(Columns):
+    """Per track: the lifecycle's record."""
+
+    origin: np.ndarray     # (N, 4) the first detected box's edges x0, y0, x1, y1
+    last_box: np.ndarray   # (N, 4) the last detected box's edges
+    hitmask: np.ndarray    # (N,) bit i: detected i frames ago
+    standing: np.ndarray   # (N,) a standing vehicle held without detections (record_hits)
+    id: np.ndarray         # (N,) public id, 0 while tentative
+    uid: np.ndarray        # (N,) internal id, unique for the run
+
+    LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {
+        "origin": ((4,), float), "last_box": ((4,), float), "hitmask": ((), np.int64),
+        "standing": ((), bool), "id": ((), int), "uid": ((), int)}
+
+    def warp(self, m: np.ndarray) -> None:
+        """Box corners map by m (the boxes stay axis-aligned)."""
+        A, b = m[:, :2], m[:, 2]
+        for e in (self.origin, self.last_box):
+            e[:, :2] = e[:, :2] @ A.T + b
+            e[:, 2:] = e[:, 2:] @ A.T + b
 
 
 class Initiator:
     """Starts tentative tracks on detections no track explains."""
 
-    def __init__(self) -> None:
+    def __init__(self, box_candidates: int) -> None:
+        """`box_candidates`: TrackerConfig.box_candidates."""
         self.next_uid = 0
+        self.box_candidates = box_candidates
 
-    @staticmethod
-    def select(centers: np.ndarray, used: np.ndarray, confirmed_boxes: np.ndarray
+    def select(self, centers: np.ndarray, used: np.ndarray, confirmed_boxes: np.ndarray
                ) -> np.ndarray:
         """The detections not `used` whose centre no confirmed track's box covers (a
         fragment of a tracked vehicle is not a new vehicle)."""
@@ -32,47 +63,29 @@ class Initiator:
         free[used] = False
         if len(confirmed_boxes) and free.any():
             idx = np.flatnonzero(free)
-            _, covered = points_in_boxes(centers[idx], confirmed_boxes)
+            _, covered = points_in_boxes(centers[idx], confirmed_boxes, self.box_candidates)
             free[idx[covered]] = False
         return np.flatnonzero(free)
 
-    def table(self, t: float, boxes: np.ndarray, x0: np.ndarray, P0: np.ndarray,
-              s0: np.ndarray, Ps0: np.ndarray) -> TrackTable:
-        """Tentative tracks with priors (x0, P0) and box sizes (s0, Ps0), first seen as
-        `boxes` (x, y, w, h) at time t (their first detection is not assimilated yet)."""
+    def new(self, boxes: np.ndarray) -> LifeColumns:
+        """The rows of tentative tracks first seen as `boxes` (x, y, w, h): no id yet, a
+        new uid each."""
         k = len(boxes)
-        table = TrackTable.empty()
-        table.x, table.P, table.s, table.Ps = x0, P0, s0, Ps0
-        table.mismatch_t, table.mismatch_sign = np.full((k, 2), np.nan), np.zeros((k, 2))
-        table.ref_p, table.ref_s = np.zeros((k, 2)), np.full(k, np.nan)
-        table.own = np.full((k, OWN, 2), np.nan)
-        table.origin = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
-        table.last_box = table.origin.copy()
-        table.hist_p = np.zeros((k, 3, 2))
-        table.hist_t = np.full((k, 3), t)
-        table.hist_s = np.zeros((k, 3, 2))
-        table.count = np.zeros(k, dtype=int)
-        table.hitmask = np.zeros(k, dtype=np.int64)
-        table.misses = np.zeros(k, dtype=int)
-        table.killed = np.zeros(k, dtype=bool)
-        table.standing = np.zeros(k, dtype=bool)
-        table.id = np.zeros(k, dtype=int)
-        table.uid = np.arange(self.next_uid, self.next_uid + k)
+        origin = edges(boxes)
+        uid = np.arange(self.next_uid, self.next_uid + k)
         self.next_uid += k
-        table.gap_p, table.gap_t = np.full((k, 2), np.nan), np.full(k, np.nan)
-        table.gap_seen, table.gap_road = np.full(k, np.nan), np.zeros(k, dtype=bool)
-        return table
+        return LifeColumns(origin, origin.copy(), np.zeros(k, dtype=np.int64),
+                           np.zeros(k, dtype=bool), np.zeros(k, dtype=int), uid)
 
 
 def record_hits(tracks: TrackTable, hit: np.ndarray, window: int, stand_speed: float
                 ) -> None:
-    """Shift this frame's hits into each track's hit mask and count its misses; a confirmed
+    """Shift this frame's hits into each track's hit mask; a confirmed
     track without a detection whose speed plus its standard deviation is under stand_speed
     (box scales/s; a track whose speed is not yet known does not qualify) is standing: it
     is held where it stopped (velocity and acceleration set to 0) until a detection takes
     it up again."""
     tracks.hitmask = ((tracks.hitmask << 1) | hit) & ((1 << window) - 1)
-    tracks.misses = np.where(hit, 0, tracks.misses + 1)
     sd = np.sqrt(tracks.P[:, 2, 2] + tracks.P[:, 3, 3])
     slow = np.hypot(tracks.x[:, 2], tracks.x[:, 3]) + sd < stand_speed * tracks.scale
     stops = (tracks.id > 0) & ~hit & ~tracks.standing & slow
@@ -80,20 +93,33 @@ def record_hits(tracks: TrackTable, hit: np.ndarray, window: int, stand_speed: f
     tracks.standing = (tracks.standing | stops) & ~hit
 
 
-def fate(tracks: TrackTable, t: float, width: int, height: int, cfg: TrackerConfig
-         ) -> tuple[np.ndarray, np.ndarray]:
-    """(inside, alive): whether part of each predicted box is still in the image, and whether
-    the track is within its coasting limit (and not a duplicate)."""
-    m = cfg.edge_margin * tracks.scale[:, None] + tracks.size / 2
-    x, y = tracks.x[:, 0], tracks.x[:, 1]
-    inside = ((x >= -m[:, 0]) & (x <= width + m[:, 0])
-              & (y >= -m[:, 1]) & (y <= height + m[:, 1]))
-    lost_for = t - tracks.hist_t[:, 0]
-    limit = np.where(tracks.id > 0, np.where(tracks.standing, cfg.max_stand_seconds,
-                                             cfg.max_coast_seconds),
-                     cfg.tentative_coast_seconds)
-    alive = lost_for <= limit + 1e-9
-    return inside, alive & ~tracks.killed
+class Deleter:
+    """Decides which tracks end this frame: a track whose whole predicted box has left the
+    image (`edge_margin` box scales beyond it), one past its coasting limit
+    (`max_coast_seconds`; `max_stand_seconds` while standing; `tentative_coast_seconds`
+    before confirmation) and the duplicates of older tracks (associator.py)."""
+
+    def __init__(self, cfg: TrackerConfig, width: int, height: int) -> None:
+        self.cfg = cfg
+        self.width, self.height = width, height
+
+    def fate(self, tracks: TrackTable, t: float, duplicates: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """(inside, alive) (N,) each: whether part of each predicted box is still in the
+        image, and whether the track is within its coasting limit and not one of the
+        `duplicates` (indices). A track is kept where both hold."""
+        cfg = self.cfg
+        m = cfg.edge_margin * tracks.scale[:, None] + tracks.size / 2
+        x, y = tracks.x[:, 0], tracks.x[:, 1]
+        inside = ((x >= -m[:, 0]) & (x <= self.width + m[:, 0])
+                  & (y >= -m[:, 1]) & (y <= self.height + m[:, 1]))
+        lost_for = t - tracks.hist_t[:, 0]
+        limit = np.where(tracks.id > 0, np.where(tracks.standing, cfg.max_stand_seconds,
+                                                 cfg.max_coast_seconds),
+                         cfg.tentative_coast_seconds)
+        alive = lost_for <= limit + 1e-9
+        alive[duplicates] = False
+        return inside, alive
 
 
 class Confirmer:

@@ -27,9 +27,77 @@ textbook position-only filter, and consistent (ANEES in the chi-square band; tes
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
 import numpy as np
 
+from vtrack.boxes import edges, on_border
+from vtrack.tracking.columns import Columns, warp_scale
+from vtrack.tracking.config import TrackerConfig
+
+if TYPE_CHECKING:
+    from vtrack.tracking.sizes import SizeUpdate
+    from vtrack.tracking.table import TrackTable
+
 MODES = ("finite-difference", "finite-difference-white", "position")
+
+
+def detection_sigma(cfg: TrackerConfig, scale: np.ndarray) -> np.ndarray:
+    """Std (px) of a detected centre for boxes of scale `scale` (px): scale-free, >= 0.5."""
+    return np.maximum(cfg.detection_sigma * scale, 0.5)
+
+
+@dataclass
+class HistoryColumns(Columns):
+    """Per track: the last three detected centres the measurement differences."""
+
+    hist_p: np.ndarray     # (N, 3, 2) last three detected centres, newest first
+    hist_t: np.ndarray     # (N, 3) their times
+    hist_s: np.ndarray     # (N, 3, 2) their stds
+    count: np.ndarray      # (N,) detections so far, capped at 3 (for the differences)
+
+    LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {
+        "hist_p": ((3, 2), float), "hist_t": ((3,), float), "hist_s": ((3, 2), float),
+        "count": ((), int)}
+
+    @classmethod
+    def new(cls, k: int, t: float) -> HistoryColumns:
+        """The rows of k tracks born at time t: no detection yet."""
+        return cls(np.zeros((k, 3, 2)), np.full((k, 3), t), np.zeros((k, 3, 2)),
+                   np.zeros(k, dtype=int))
+
+    def warp(self, m: np.ndarray) -> None:
+        """Centres map by m, their stds scale by sqrt|det A|."""
+        self.hist_s = self.hist_s * warp_scale(m)
+        self.hist_p = self.hist_p @ m[:, :2].T + m[:, 2]
+
+
+class CentreMeasurement:
+    """A track's detected box as a measurement of its centre filter: the centre the box
+    gives (`box_centre`, from what the size role decided it showed), pushed into the
+    track's last three detections, and seed 001's measurement of those
+    (`measurement_model`, TrackerConfig.measurement)."""
+
+    def __init__(self, cfg: TrackerConfig) -> None:
+        self.cfg = cfg
+
+    def measure(self, tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray, t: float,
+                sizes: SizeUpdate) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(z, H, R, mask) of tracks idx from their detected boxes (K, 4) at time t; records
+        the detection in each track's history and last box."""
+        pos_var = tracks.P[idx][:, [0, 1], [0, 1]]
+        sigma = detection_sigma(self.cfg, np.sqrt(sizes.size.prod(axis=1)))[:, None]
+        centers, var = box_centre(tracks.x[idx, :2], pos_var, sizes.size, sizes.size_var,
+                                  boxes, sizes.whole, sigma, sizes.cut)
+        for hist, newest in ((tracks.hist_s, np.sqrt(var)), (tracks.hist_p, centers),
+                             (tracks.hist_t, t)):
+            hist[idx, 1:] = hist[idx, :-1]  # fancy indexing copies before the write
+            hist[idx, 0] = newest
+        tracks.count[idx] = np.minimum(tracks.count[idx] + 1, 3)
+        tracks.last_box[idx] = edges(boxes)
+        return measurement_model(tracks.hist_p[idx], tracks.hist_t[idx], tracks.count[idx],
+                                 tracks.hist_s[idx], self.cfg.measurement)
 
 
 def difference_operator(h1: np.ndarray, h2: np.ndarray) -> np.ndarray:
@@ -206,6 +274,5 @@ def nested_centre(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: 
 
 def border_cut(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
     """(K, 2, 2): which edges (axis x low/high) of boxes (x, y, w, h) lie on the image
-    border, where the vehicle may go on beyond the picture."""
-    lo, hi = boxes[:, :2], boxes[:, :2] + boxes[:, 2:]
-    return np.stack([lo <= 0.5, hi >= np.array([width, height]) - 0.5], axis=2)
+    border (within half a pixel), where the vehicle may go on beyond the picture."""
+    return on_border(boxes, width, height)

@@ -19,6 +19,16 @@ its area in the image is not reported at all: that sliver at the border is place
 prediction alone (on the scene suite none of the 70 such rows scored matched a
 vehicle).
 
+Each track is, for the reporter, in one of five states, read from what the reporter holds
+for it and the track's flags: `tentative` (not confirmed: every row held), `confirmed`
+(nothing held: its rows are final as they come), `coasting` (confirmed, the predicted rows
+since its last detection held), `standing` (confirmed and held in place: its rows held, not
+smoothed) and `ended` (gone). Each frame brings each track one event, the first that
+applies: `lost` (past its coasting limit, or a duplicate), `left` (its prediction left the
+image), `detected`, `missed`. `TRANSITIONS` is the whole machine: the actions each (state,
+event) runs, in order, and the state they lead to (where the row is visible; an invisible
+row is not held).
+
 A coasted stretch that a detection confirms is reported smoothed: the fixed-interval (RTS)
 smoother carries the re-acquisition's correction back over the predictions
 (kalman.smooth_gap), so the rows follow a vehicle that braked or sped up while unseen
@@ -31,16 +41,63 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
+from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
 
+from vtrack.boxes import from_centre, in_image
 from vtrack.estimation.kalman import smooth_gap
 from vtrack.tracking.table import TrackTable
 
 ROW_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf")  # conf 1 = detected, < 1 = coasted
 ON_COURSE_IOU = 0.5  # a re-acquisition this close to the prediction confirms the coasted rows
 MIN_INSIDE_SHARE = 0.25  # a coasted row keeps this share of its predicted box in the image
+
+
+class State(Enum):
+    TENTATIVE = "tentative"
+    CONFIRMED = "confirmed"
+    COASTING = "coasting"
+    STANDING = "standing"
+    ENDED = "ended"
+
+
+class Event(Enum):
+    LOST = "lost"            # past its coasting limit, or a duplicate of an older track
+    LEFT = "left"            # its predicted box left the image
+    DETECTED = "detected"
+    MISSED = "missed"
+
+
+# The actions (RowReporter methods, run in order):
+# drop     forget the held rows and coasted stretch;
+# leave    release the held rows if the track left on its vehicle's way (`leaves_on_its_way`),
+#          else drop them;
+# emit     report this frame's row at once (when visible);
+# settle   a detection ends a coasted stretch: smooth the held coasted rows where it confirms
+#          the prediction (on course), drop them where it does not; forget the stretch;
+# hold     hold this frame's row (when visible);
+# coast    remember the row's predicted state for smoothing (a standing track: forget it);
+# release  report the held rows with the track's id, once the track is confirmed.
+_COASTING = {Event.LOST: (State.ENDED, ("drop",)),
+             Event.LEFT: (State.ENDED, ("leave",)),
+             Event.DETECTED: (State.CONFIRMED, ("settle", "hold", "release")),
+             Event.MISSED: (State.COASTING, ("hold", "coast"))}
+TRANSITIONS: dict[tuple[State, Event], tuple[State, tuple[str, ...]]] = {
+    (State.TENTATIVE, Event.LOST): (State.ENDED, ("drop",)),
+    (State.TENTATIVE, Event.LEFT): (State.ENDED, ("drop",)),
+    # -> confirmed (its rows released) on the frame the confirmer gives it an id
+    (State.TENTATIVE, Event.DETECTED): (State.TENTATIVE, ("settle", "hold", "release")),
+    (State.TENTATIVE, Event.MISSED): (State.TENTATIVE, ("hold", "coast")),
+    (State.CONFIRMED, Event.LOST): (State.ENDED, ("drop",)),
+    (State.CONFIRMED, Event.LEFT): (State.ENDED, ("leave",)),
+    (State.CONFIRMED, Event.DETECTED): (State.CONFIRMED, ("emit",)),
+    # -> standing when the track stops (lifecycle.record_hits)
+    (State.CONFIRMED, Event.MISSED): (State.COASTING, ("hold", "coast")),
+    **{(State.COASTING, e): outcome for e, outcome in _COASTING.items()},
+    **{(State.STANDING, e): outcome for e, outcome in _COASTING.items()},
+}
 
 
 class CoastedRow(NamedTuple):
@@ -75,8 +132,9 @@ class RowReporter:
         tracks' boxes clipped to the image; on_course marks the hit tracks whose detection
         confirms their prediction; (prior_x, prior_P) are the centre states before this
         frame's update of the tracks that existed before it (tracks born this frame come
-        after them and have no coasted rows). conf is 1 for a detected row and falls from 0.95 to
-        0.05 over the coasting limit."""
+        after them and have no coasted rows). conf is 1 for a detected row and falls from
+        0.95 to 0.05 over the coasting limit. Each track's (state, event) runs the actions
+        of TRANSITIONS; confirmed tracks detected come first, in one block."""
         conf = np.where(hit, 1.0,
                         np.clip(1.0 - (t - tracks.hist_t[:, 0]) / (self.max_coast + 1e-9),
                                 0.05, 0.95))
@@ -88,43 +146,23 @@ class RowReporter:
         inside_share = boxes[:, 2] * boxes[:, 3] / np.prod(tracks.size, axis=1)
         visible = ((boxes[:, 2] >= 1.0) & (boxes[:, 3] >= 1.0)
                    & (hit | (inside_share >= MIN_INSIDE_SHARE)))
-        waiting = np.fromiter(self.pending, dtype=int, count=len(self.pending))
-        has_pending = np.isin(tracks.uid, waiting)
-        confirmed = tracks.id > 0
-        simple = confirmed & hit & inside & alive & ~has_pending & visible
-        out = [rows[simple]]
-        for i in np.flatnonzero(~simple):
-            uid = int(tracks.uid[i])
-            if not alive[i]:
-                self.pending.pop(uid, None)
-                self.coasted.pop(uid, None)
-                continue
-            if not inside[i]:
-                self.coasted.pop(uid, None)
-                tail = self.pending.pop(uid, [])
-                if confirmed[i] and leaves_on_its_way(tracks, i):
-                    out.extend(tail)
-                continue
-            if hit[i] and not on_course[i] and uid in self.pending:
-                drop_coasted_tail(self.pending[uid])
-            elif hit[i] and uid in self.coasted and uid in self.pending:
-                self._smooth(self.pending[uid], self.coasted[uid], t, tracks.x[i],
-                             prior_x[i], prior_P[i])
-            if hit[i]:
-                self.coasted.pop(uid, None)
-            if visible[i]:
-                self.pending.setdefault(uid, deque(maxlen=self.MAX_PENDING)).append(rows[i])
-                if tracks.standing[i]:     # held on purpose, not predicted: not smoothed
-                    self.coasted.pop(uid, None)
-                elif self.transition is not None and not hit[i]:
-                    self.coasted.setdefault(uid, []).append(CoastedRow(
-                        frame, t, tracks.x[i].copy(), tracks.P[i].copy(),
-                        tracks.size[i].copy()))
-            if confirmed[i] and hit[i] and uid in self.pending:
-                back = np.array(self.pending.pop(uid))
-                back[:, 1] = tracks.id[i]
-                out.append(back)
+        states = self.states(tracks)
+        events = np.select([~alive, ~inside, hit], [Event.LOST, Event.LEFT, Event.DETECTED],
+                           Event.MISSED)
+        block = (states == State.CONFIRMED) & (events == Event.DETECTED) & visible
+        out = [rows[block]]
+        step = _Step(self, frame, t, tracks, rows, visible, on_course, prior_x, prior_P, out)
+        for i in np.flatnonzero(~block):
+            for action in TRANSITIONS[states[i], events[i]][1]:
+                getattr(step, action)(i)
         return np.vstack(out) if out else np.zeros((0, 7))
+
+    def states(self, tracks: TrackTable) -> np.ndarray:
+        """(N,) each track's State before this frame's event (module docstring)."""
+        held = np.isin(tracks.uid, np.fromiter(self.pending, dtype=int,
+                                               count=len(self.pending)))
+        return np.select([tracks.id == 0, ~held, tracks.standing],
+                         [State.TENTATIVE, State.CONFIRMED, State.STANDING], State.COASTING)
 
     def _smooth(self, rows: deque[np.ndarray], stretch: list[CoastedRow], t: float,
                 x_post: np.ndarray, x_prior: np.ndarray, P_prior: np.ndarray) -> None:
@@ -135,17 +173,73 @@ class RowReporter:
                        x_prior, P_prior, x_post)
         moved = {}
         for c, xs in zip(stretch, x, strict=True):
-            before = np.concatenate([c.x[:2] - c.size / 2, c.size])
-            after = np.concatenate([xs[:2] - c.size / 2, c.size])
-            if self._in_image(before) and self._in_image(after):
+            before, after = from_centre(c.x[:2], c.size), from_centre(xs[:2], c.size)
+            if in_image(before, self.width, self.height) and in_image(after, self.width,
+                                                                      self.height):
                 moved[c.frame] = after
         for r in rows:
             if r[6] < 1.0 and int(r[0]) in moved:
                 r[2:6] = moved[int(r[0])]
 
-    def _in_image(self, box: np.ndarray) -> bool:
-        return bool(box[0] >= 0 and box[1] >= 0 and box[0] + box[2] <= self.width
-                    and box[1] + box[3] <= self.height)
+
+class _Step:
+    """The actions of TRANSITIONS on one frame's rows (RowReporter.rows)."""
+
+    def __init__(self, reporter: RowReporter, frame: int, t: float, tracks: TrackTable,
+                 rows: np.ndarray, visible: np.ndarray, on_course: np.ndarray,
+                 prior_x: np.ndarray, prior_P: np.ndarray, out: list[np.ndarray]) -> None:
+        self.r, self.frame, self.t, self.tracks = reporter, frame, t, tracks
+        self.rows, self.visible, self.on_course = rows, visible, on_course
+        self.prior_x, self.prior_P, self.out = prior_x, prior_P, out
+
+    def drop(self, i: int) -> None:
+        uid = int(self.tracks.uid[i])
+        self.r.pending.pop(uid, None)
+        self.r.coasted.pop(uid, None)
+
+    def leave(self, i: int) -> None:
+        uid = int(self.tracks.uid[i])
+        self.r.coasted.pop(uid, None)
+        tail = self.r.pending.pop(uid, [])
+        if leaves_on_its_way(self.tracks, i):
+            self.out.extend(tail)
+
+    def emit(self, i: int) -> None:
+        if self.visible[i]:
+            self.out.append(self.rows[i:i + 1])
+
+    def settle(self, i: int) -> None:
+        r, uid = self.r, int(self.tracks.uid[i])
+        if not self.on_course[i] and uid in r.pending:
+            drop_coasted_tail(r.pending[uid])
+        elif uid in r.coasted and uid in r.pending:
+            r._smooth(r.pending[uid], r.coasted[uid], self.t, self.tracks.x[i],
+                      self.prior_x[i], self.prior_P[i])
+        r.coasted.pop(uid, None)
+
+    def hold(self, i: int) -> None:
+        if self.visible[i]:
+            uid = int(self.tracks.uid[i])
+            self.r.pending.setdefault(uid, deque(maxlen=self.r.MAX_PENDING)).append(
+                self.rows[i])
+
+    def coast(self, i: int) -> None:
+        r, tracks, uid = self.r, self.tracks, int(self.tracks.uid[i])
+        if not self.visible[i]:
+            return
+        if tracks.standing[i]:     # held on purpose, not predicted: not smoothed
+            r.coasted.pop(uid, None)
+        elif r.transition is not None:
+            r.coasted.setdefault(uid, []).append(CoastedRow(
+                self.frame, self.t, tracks.x[i].copy(), tracks.P[i].copy(),
+                tracks.size[i].copy()))
+
+    def release(self, i: int) -> None:
+        uid = int(self.tracks.uid[i])
+        if self.tracks.id[i] > 0 and uid in self.r.pending:
+            back = np.array(self.r.pending.pop(uid))
+            back[:, 1] = self.tracks.id[i]
+            self.out.append(back)
 
 
 def leaves_on_its_way(tracks: TrackTable, i: int) -> bool:

@@ -1,66 +1,72 @@
-"""The track table: every track's state and bookkeeping as parallel arrays (one row a track),
-so that the filter bank, the associator and the lifecycle work on all tracks at once."""
+"""The track table: every track's state as parallel arrays (one row a track), so that the
+roles work on all tracks at once. Each role owns its columns -- their layout, the values a
+new track starts with, how they move with the camera -- in its own module:
+
+- centre (filter_bank.CentreColumns): x, P, the centre filter's state;
+- history (measurements.HistoryColumns): hist_p, hist_t, hist_s, count, the last three
+  detected centres the centre measurement differences;
+- box_size (sizes.SizeColumns): s, Ps, mismatch_t, mismatch_sign, own, ref_p, ref_s, the
+  box size filter's state, the own-size memory and the scale field's reference;
+- life (lifecycle.LifeColumns): origin, last_box, hitmask, standing, id, uid, the
+  lifecycle's record.
+
+(The associator's fragment stage keeps its gap record apart, fragments.GapColumns.) The
+table reads and writes each column by its name (`tracks.x` is `tracks.centre.x`); `keep`,
+`append` and `warp` act on every group together.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import get_type_hints
 
 import numpy as np
 
-from vtrack.boxes import clip
-
-OWN = 9  # detections whose median gives a vehicle's own size (box_size.py)
+from vtrack.boxes import clip, from_centre
+from vtrack.tracking.columns import Columns
+from vtrack.tracking.filter_bank import CentreColumns
+from vtrack.tracking.lifecycle import LifeColumns
+from vtrack.tracking.measurements import HistoryColumns
+from vtrack.tracking.sizes import SizeColumns
 
 
 @dataclass
 class TrackTable:
-    """Struct of arrays over tracks; `keep` and `append` act on every column together."""
+    """The roles' columns over the same tracks (module docstring)."""
 
-    x: np.ndarray          # (N, 6) filtered [x, y, vx, vy, ax, ay] of the box centre
-    P: np.ndarray          # (N, 6, 6) its covariance
-    s: np.ndarray          # (N, 4) [ln w, ln h, d ln w/dt, d ln h/dt] of the box (box_size.py)
-    Ps: np.ndarray         # (N, 4, 4) its covariance
-    mismatch_t: np.ndarray     # (N, 2) since when detections disagree with the size
-    mismatch_sign: np.ndarray  # (N, 2) in which direction (+1 larger, -1 smaller, 0 none)
-    ref_p: np.ndarray      # (N, 2) a whole-vehicle box's centre kept for the scale field
-    ref_s: np.ndarray      # (N,) and its scale (nan: none yet)
-    own: np.ndarray        # (N, OWN, 2) ln((w, h) / k) of the last detections (nan: none)
-    origin: np.ndarray     # (N, 4) the first detected box's edges x0, y0, x1, y1
-    last_box: np.ndarray   # (N, 4) the last detected box's edges
-    hist_p: np.ndarray     # (N, 3, 2) last three detected centres, newest first
-    hist_t: np.ndarray     # (N, 3) their times
-    hist_s: np.ndarray     # (N, 3, 2) their stds
-    count: np.ndarray      # (N,) detections so far, capped at 3 (for the differences)
-    hitmask: np.ndarray    # (N,) bit i: detected i frames ago
-    misses: np.ndarray     # (N,) frames since the last detection
-    killed: np.ndarray     # (N,) a duplicate of an older track, deleted this frame
-    standing: np.ndarray   # (N,) a standing vehicle held without detections (lifecycle.py)
-    id: np.ndarray         # (N,) public id, 0 while tentative
-    uid: np.ndarray        # (N,) internal id, unique for the run
-    gap_p: np.ndarray      # (N, 2) where a gap between two pieces was first seen
-    gap_t: np.ndarray      # (N,) and when (nan: the track's box holds one piece)
-    gap_seen: np.ndarray   # (N,) when the track's box last held several pieces
-    gap_road: np.ndarray   # (N,) that gap may be road: not body on any frame, not nested
+    centre: CentreColumns
+    history: HistoryColumns
+    box_size: SizeColumns
+    life: LifeColumns
 
     @classmethod
     def empty(cls) -> TrackTable:
         """A table without tracks."""
-        return cls(**{name: np.zeros((0,) + shape, dtype=dtype)
-                      for name, (shape, dtype) in _LAYOUT.items()})
+        return cls(CentreColumns.empty(), HistoryColumns.empty(), SizeColumns.empty(),
+                   LifeColumns.empty())
+
+    def groups(self) -> list[Columns]:
+        """The role groups, in field order."""
+        return [getattr(self, f.name) for f in fields(self)]
 
     def __len__(self) -> int:
-        return len(self.x)
+        return len(self.centre)
 
     def keep(self, mask: np.ndarray) -> None:
         """Drop the tracks where `mask` is False."""
-        for f in fields(self):
-            setattr(self, f.name, getattr(self, f.name)[mask])
+        for g in self.groups():
+            g.keep(mask)
 
     def append(self, other: TrackTable) -> None:
         """Add the tracks of `other` at the end."""
-        for f in fields(self):
-            setattr(self, f.name, np.concatenate([getattr(self, f.name),
-                                                  getattr(other, f.name)]))
+        for g, o in zip(self.groups(), other.groups(), strict=True):
+            g.append(o)
+
+    def warp(self, m: np.ndarray) -> None:
+        """Move every track with the camera: m (2, 3) maps the previous frame's pixels onto
+        the current frame's (each group's `warp`)."""
+        for g in self.groups():
+            g.warp(m)
 
     @property
     def size(self) -> np.ndarray:
@@ -72,26 +78,6 @@ class TrackTable:
         """(N,) box scale sqrt(w h), px: the unit of the scale-free parameters."""
         return np.exp(self.s[:, :2].mean(axis=1))
 
-    def warp(self, m: np.ndarray) -> None:
-        """Move every track with the camera: m (2, 3) maps the previous frame's pixels onto
-        the current frame's (p' = A p + b). Positions map by m; velocities, accelerations
-        and the covariance by A (P' = T P T', T = I3 (x) A); sizes scale by sqrt|det A|."""
-        A, b = m[:, :2], m[:, 2]
-        T = np.zeros((6, 6))
-        T[0:2, 0:2] = T[2:4, 2:4] = T[4:6, 4:6] = A
-        self.x = self.x @ T.T
-        self.x[:, :2] += b
-        self.P = T @ self.P @ T.T
-        scale = float(np.sqrt(abs(np.linalg.det(A))))
-        self.s[:, :2] += np.log(scale)
-        self.own += np.log(scale)
-        self.hist_s = self.hist_s * scale
-        for edges in (self.origin, self.last_box):  # corners moved (boxes stay axis-aligned)
-            edges[:, :2] = edges[:, :2] @ A.T + b
-            edges[:, 2:] = edges[:, 2:] @ A.T + b
-        self.hist_p = self.hist_p @ A.T + b
-        self.gap_p = self.gap_p @ A.T + b
-
     @property
     def confirmed(self) -> np.ndarray:
         """Indices of the confirmed tracks."""
@@ -99,18 +85,20 @@ class TrackTable:
 
     def boxes(self, width: int, height: int) -> np.ndarray:
         """Boxes (x, y, w, h) centred on the filtered positions, clipped to the image."""
-        size = self.size
-        return clip(np.hstack([self.x[:, :2] - size / 2, size]), width, height)
+        return clip(from_centre(self.x[:, :2], self.size), width, height)
 
 
-_LAYOUT = {  # per-track shape and dtype of each column
-    "x": ((6,), float), "P": ((6, 6), float), "s": ((4,), float), "Ps": ((4, 4), float),
-    "mismatch_t": ((2,), float), "mismatch_sign": ((2,), float), "ref_p": ((2,), float),
-    "ref_s": ((), float), "own": ((OWN, 2), float), "origin": ((4,), float),
-    "last_box": ((4,), float), "hist_p": ((3, 2), float),
-    "hist_t": ((3,), float), "hist_s": ((3, 2), float), "count": ((), int),
-    "hitmask": ((), np.int64), "misses": ((), int), "killed": ((), bool), "standing": ((), bool),
-    "id": ((), int),
-    "uid": ((), int), "gap_p": ((2,), float), "gap_t": ((), float),
-    "gap_seen": ((), float), "gap_road": ((), bool),
-}
+def _column(group: str, name: str) -> property:
+    def get(self: TrackTable) -> np.ndarray:
+        return getattr(getattr(self, group), name)
+
+    def put(self: TrackTable, value: np.ndarray) -> None:
+        setattr(getattr(self, group), name, value)
+
+    return property(get, put, doc=f"`{group}.{name}`")
+
+
+# Each group's columns by name on the table (tracks.x is tracks.centre.x).
+for _group, _cls in get_type_hints(TrackTable).items():
+    for _name in _cls.LAYOUT:
+        setattr(TrackTable, _name, _column(_group, _name))

@@ -1,16 +1,24 @@
 """Multi-target vehicle tracker: one constant-acceleration Kalman filter per vehicle, all
 stepped together as arrays through the shared core.
 
-The tracker is composed of roles, each in its own module:
-- the track table (table.py): every track's state as parallel arrays;
-- the filter bank (filter_bank.py): predict and update all tracks' centre filters;
-- the box size filter (box_size.py): every track's width and height with their rates;
-- the associator (associator.py): fragments, gating and assignment, shared blobs,
-  re-acquisition;
-- the measurement (measurements.py): the nested-box centre and seed 001's finite
-  differences;
-- the lifecycle (lifecycle.py): initiator, confirmation, deleter;
-- the reporter (reporter.py): which MOT rows are final.
+`Tracker.update` is one page of role calls, in this order: associate, update sizes, measure
+centres, update centres, initiate (and assimilate the new tracks alike), record hits,
+decide deletions, confirm, report, delete. Each role is in its own module and owns its
+per-track columns (their initial values and their warp under camera motion); the track
+table (table.py) joins them:
+- the filter bank (filter_bank.py; CentreColumns x, P): predicts and updates all tracks'
+  centre filters;
+- the size role (sizes.py; SizeColumns s, Ps, mismatch_t, mismatch_sign, own, ref_p,
+  ref_s): every track's width and height with their rates (box_size.py) and the scene's
+  scale field (scale_field.py), behind one `update`;
+- the centre measurement (measurements.py; HistoryColumns hist_p, hist_t, hist_s, count):
+  the nested-box centre and seed 001's finite differences;
+- the associator (associator.py): fragments (fragments.py; GapColumns gap_p, gap_t,
+  gap_seen, gap_road, kept apart by the tracker), gating and assignment, shared blobs,
+  re-acquisition; it changes nothing and returns its decisions;
+- the lifecycle (lifecycle.py; LifeColumns origin, last_box, hitmask, standing, id, uid):
+  initiator, confirmer, deleter;
+- the reporter (reporter.py): which MOT rows are final, a state machine.
 """
 
 from __future__ import annotations
@@ -18,18 +26,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from vtrack.boxes import clip, intersection, paired_iou
-from vtrack.tracking.associator import Associator, ChangedShare, detection_sigma
-from vtrack.tracking.box_size import BoxSizeFilter, anchored, own_size, remember_size
+from vtrack.boxes import clip, from_centre, paired_iou
+from vtrack.boxes import scale as box_scale
+from vtrack.tracking.associator import Associator, ChangedShare
 from vtrack.tracking.config import ADAPTIVE_KINDS, TrackerConfig
 from vtrack.tracking.filter_bank import FilterBank
-from vtrack.tracking.lifecycle import Confirmer, Initiator, fate, record_hits
-from vtrack.tracking.measurements import (border_cut, box_centre, measurement_model,
-                                          shrunk)
+from vtrack.tracking.fragments import GapColumns
+from vtrack.tracking.lifecycle import Confirmer, Deleter, Initiator, record_hits
+from vtrack.tracking.measurements import CentreMeasurement, HistoryColumns, detection_sigma
 from vtrack.tracking.reporter import ON_COURSE_IOU, ROW_COLUMNS, RowReporter
-from vtrack.tracking.scale_field import ScaleField
+from vtrack.tracking.sizes import Sizes
 from vtrack.tracking.table import TrackTable
 
 _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -63,14 +70,14 @@ class Tracker:
         self.cfg = cfg
         self.width, self.height = width, height
         self.tracks = TrackTable.empty()
+        self.gaps = GapColumns.empty()   # the associator's fragment stage's record
         self.bank = FilterBank(cfg)
-        self.sizes = BoxSizeFilter(cfg.size_psd, cfg.size_sigma, cfg.size_rate_seconds,
-                                   cfg.size_gate_probability,
-                                   (cfg.size_grow_seconds, cfg.size_shrink_seconds))
-        self.field = ScaleField(width, height)
+        self.sizes = Sizes(cfg, width, height)
+        self.centres = CentreMeasurement(cfg)
         self.associator = Associator(cfg, width, height)
-        self.initiator = Initiator()
+        self.initiator = Initiator(cfg.box_candidates)
         self.confirmer = Confirmer(cfg, fps)
+        self.deleter = Deleter(cfg, width, height)
         self.reporter = RowReporter(cfg.max_coast_seconds, width, height,
                                     self.bank.model.transition if cfg.smooth_coasted else None)
         self.t_prev: float | None = None
@@ -101,13 +108,12 @@ class Tracker:
         tracks = self.tracks
         if motion is not None and len(tracks) and not np.allclose(motion, _IDENTITY):
             tracks.warp(motion)
-        growth = (self.field.log_rate(tracks.x[:, :2], tracks.x[:, 2:4])
-                  if self.cfg.scale_field else np.zeros(len(tracks)))
+            self.gaps.warp(motion)
+        growth = self.sizes.growth(tracks)   # from the velocities and scales before the step
         self.bank.predict(tracks, dt)
-        tracks.s, tracks.Ps = self.sizes.predict(tracks.s, tracks.Ps, dt, growth)
+        self.sizes.predict(tracks, dt, growth)
         conf = tracks.id > 0
-        size = tracks.size[conf]
-        return np.hstack([tracks.x[conf, :2] - size / 2, size])
+        return from_centre(tracks.x[conf, :2], tracks.size[conf])
 
     def update(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
                changed: ChangedShare | None = None) -> FrameTracks:
@@ -117,148 +123,95 @@ class Tracker:
         gap between two pieces of a blob with it."""
         centers = np.asarray(centers, dtype=float).reshape(-1, 2)
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
-        tracks = self.tracks
-        a = self.associator.associate(tracks, t, centers, boxes,
+        tracks, W, H = self.tracks, self.width, self.height
+        # associate: which detection updates which track (decisions only)
+        a = self.associator.associate(tracks, self.gaps, t, centers, boxes,
                                       changed if self.cfg.gap_labels else None)
-        tracks.killed[a.duplicates] = True
-        innov = np.full(len(tracks), np.nan)
-        predicted = tracks.boxes(self.width, self.height)[a.tracks]
+        self.gaps = a.gaps
+        predicted = tracks.boxes(W, H)[a.tracks]
         prior_x, prior_P = tracks.x.copy(), tracks.P.copy()
-        innov[a.tracks], whole = self._update(a.tracks, a.boxes[a.detections], t,
-                                              a.split[a.tracks])
-        hit = np.zeros(len(tracks), dtype=bool)
-        hit[a.tracks] = True
-        det_of = np.full(len(tracks), -1)
-        det_of[a.tracks] = a.detections
-
-        conf_boxes = tracks.boxes(self.width, self.height)[tracks.id > 0]
+        # update sizes, measure centres, update centres (the tracks detected)
+        innov, whole = self._assimilate(a.tracks, a.boxes[a.detections], t, a.split[a.tracks])
+        # initiate: tentative tracks on the detections no track explains, assimilated alike
         started = self.initiator.select(a.centers, np.concatenate([a.detections, a.consumed]),
-                                        conf_boxes)
-        n_old = len(tracks)
-        self._start(t, a.centers[started], a.boxes[started])
-        new = np.arange(n_old, len(tracks))
-        innov = np.concatenate([innov, self._update(new, a.boxes[started], t,
-                                                    np.zeros(len(new), dtype=bool))[0]])
-        det_of = np.concatenate([det_of, started])
-        hit = np.concatenate([hit, np.ones(len(new), dtype=bool)])
+                                        tracks.boxes(W, H)[tracks.id > 0])
+        new = self._start(t, a.centers[started], a.boxes[started])
+        innov_new, _ = self._assimilate(new, a.boxes[started], t, np.zeros(len(new), bool))
+        hit = np.zeros(len(tracks), dtype=bool)
+        hit[a.tracks] = hit[new] = True
         record_hits(tracks, hit, self.confirmer.window, self.cfg.stand_speed)
-
-        inside, alive = fate(tracks, t, self.width, self.height, self.cfg)
+        # delete (decide), confirm
+        inside, alive = self.deleter.fate(tracks, t, a.duplicates)
         self.confirmer.confirm(tracks, hit, inside & alive)
-        # A detected row shows the detection's box where it showed the whole vehicle (the
-        # filtered box lags a vehicle's change of size); a re-acquired track's coasted rows
-        # are reported only if the detection confirms where the prediction put it.
-        filtered = tracks.boxes(self.width, self.height)
-        shown = filtered.copy()
-        shown[a.tracks[whole]] = clip(a.boxes[a.detections][whole], self.width, self.height)
-        on_course = np.ones(len(tracks), dtype=bool)
-        on_course[a.tracks] = paired_iou(predicted, shown[a.tracks]) >= ON_COURSE_IOU
+        # report
+        filtered = tracks.boxes(W, H)
+        shown, on_course = self._shown(filtered, predicted, a.tracks,
+                                       a.boxes[a.detections], whole)
         rows = self.reporter.rows(frame, t, tracks, shown, hit, on_course, inside, alive,
                                   prior_x, prior_P)
+        # delete (apply)
         keep = inside & alive
-        self.bank.forget(tracks.uid[~keep])
-        tracks.keep(keep)
-        hit, innov, det_of = hit[keep], innov[keep], det_of[keep]
+        self._delete(~keep)
+        det_of = np.full(len(keep), -1)
+        det_of[a.tracks], det_of[new] = a.detections, started
+        nis = np.full(len(keep), np.nan)
+        nis[a.tracks], nis[new] = innov, innov_new
+        return self._frame_tracks(rows, filtered[keep], hit[keep], nis[keep], det_of[keep])
+
+    def _shown(self, filtered: np.ndarray, predicted: np.ndarray, idx: np.ndarray,
+               boxes: np.ndarray, whole: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The box each track's row shows, and whether each detected track is on course.
+        A detected row shows the detection's box (clipped) where it showed the whole
+        vehicle (the filtered box lags a vehicle's change of size), else the filtered box;
+        tracks idx detected as `boxes` are on course where their predicted box and the shown
+        one overlap with IoU >= ON_COURSE_IOU (a re-acquired track's coasted rows are
+        reported only then, reporter.py)."""
+        shown = filtered.copy()
+        shown[idx[whole]] = clip(boxes[whole], self.width, self.height)
+        on_course = np.ones(len(filtered), dtype=bool)
+        on_course[idx] = paired_iou(predicted, shown[idx]) >= ON_COURSE_IOU
+        return shown, on_course
+
+    def _frame_tracks(self, rows: np.ndarray, boxes: np.ndarray, hit: np.ndarray,
+                      nis: np.ndarray, det_of: np.ndarray) -> FrameTracks:
+        """The confirmed tracks after the frame (boxes, hit, nis, det_of over the kept
+        tracks)."""
+        tracks = self.tracks
         conf = tracks.id > 0
-        return FrameTracks(ids=tracks.id[conf].copy(), boxes=filtered[keep][conf],
-                           coasted=~hit[conf], states=tracks.x[conf].copy(),
-                           covariances=tracks.P[conf].copy(), innovations=innov[conf],
-                           rows=rows, detection_of=det_of[conf],
-                           size_rates=self._size_rates(conf))
+        return FrameTracks(ids=tracks.id[conf].copy(), boxes=boxes[conf], coasted=~hit[conf],
+                           states=tracks.x[conf].copy(), covariances=tracks.P[conf].copy(),
+                           innovations=nis[conf], rows=rows, detection_of=det_of[conf],
+                           size_rates=self.sizes.rates(tracks, conf))
 
-    def _size_rates(self, idx: np.ndarray) -> np.ndarray:
-        """d(w, h)/dt (px/s) of tracks idx: the growth the scene's perspective gives their
-        motion plus the size filter's own rates."""
-        tracks = self.tracks
-        growth = (self.field.log_rate(tracks.x[idx, :2], tracks.x[idx, 2:4])
-                  if self.cfg.scale_field else np.zeros(len(tracks.x[idx])))
-        return tracks.size[idx] * (growth[:, None] + tracks.s[idx, 2:])
-
-    def _start(self, t: float, centers: np.ndarray, boxes: np.ndarray) -> None:
-        """Append tentative tracks on these detections (assimilated by _update next)."""
-        scale = np.sqrt(boxes[:, 2] * boxes[:, 3])
-        var = np.repeat(detection_sigma(self.cfg, scale)[:, None] ** 2, 2, axis=1)
-        x0, P0 = self.bank.prior(centers, scale)
-        s0, Ps0 = self.sizes.initial(boxes[:, 2:], self.cfg.init_size_rate_sigma)
-        new = self.initiator.table(t, boxes, x0, P0, s0, Ps0)
-        self.bank.start(new.uid, x0, var, scale)
-        self.tracks.append(new)
-
-    def _learn_scale(self, idx: np.ndarray, boxes: np.ndarray) -> None:
-        """Feed the scale field with whole-vehicle boxes of confirmed tracks whose box
-        overlaps no other track's: a pair once the track has moved half a box scale."""
-        tracks = self.tracks
-        conf = tracks.id[idx] > 0
-        idx, boxes = idx[conf], boxes[conf]
+    def _assimilate(self, idx: np.ndarray, boxes: np.ndarray, t: float, split: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """Update tracks idx with their detected boxes (K, 4) at time t: the size role first
+        (sizes.py; split (K,) marks tracks whose box held several vehicles), then the centre
+        measured from what it decided the box showed (measurements.py, seed 001 eqs. 24-26)
+        and the centre filters' update. Returns the NIS (K,) and whether each detection
+        showed the whole vehicle."""
         if len(idx) == 0:
-            return
-        all_boxes = tracks.boxes(self.width, self.height)
-        centre = all_boxes[:, :2] + all_boxes[:, 2:] / 2
-        # Boxes that overlap have centres within the largest diagonal (k-d tree pairs).
-        near = cKDTree(centre).query_ball_point(
-            centre[idx], float(np.hypot(all_boxes[:, 2], all_boxes[:, 3]).max()))
-        qi = np.repeat(np.arange(len(idx)), [len(n) for n in near])
-        pj = np.fromiter((j for n in near for j in n), dtype=int, count=len(qi))
-        other = pj != idx[qi]
-        qi, pj = qi[other], pj[other]
-        touching = qi[intersection(all_boxes[idx[qi]], all_boxes[pj]) > 0]
-        alone = np.bincount(touching, minlength=len(idx)) == 0
-        idx, boxes = idx[alone], boxes[alone]
-        p = boxes[:, :2] + boxes[:, 2:] / 2
-        sc = np.sqrt(boxes[:, 2] * boxes[:, 3])
-        ref = tracks.ref_s[idx]
-        far = np.hypot(*(p - tracks.ref_p[idx]).T) >= 0.5 * np.fmin(sc, ref)
-        pair = np.isfinite(ref) & far
-        self.field.add(tracks.ref_p[idx[pair]], ref[pair], p[pair], sc[pair])
-        new = ~np.isfinite(ref) | pair
-        tracks.ref_p[idx[new]], tracks.ref_s[idx[new]] = p[new], sc[new]
-
-    def _update(self, mt: np.ndarray, boxes: np.ndarray, t: float, split: np.ndarray
-                ) -> np.ndarray:
-        """Update tracks `mt` with their detected boxes at time t: the box size where the
-        detection shows the whole vehicle (box_size.py; a split track's size starts again
-        from its piece), the centre from the nested boxes (seed 001 eqs. 24-26). Returns
-        the NIS and whether each detection showed the whole vehicle (no side partial or
-        cut by the image border, not a piece of a split blob)."""
-        cfg, tracks = self.cfg, self.tracks
-        if len(mt) == 0:
             return np.zeros(0), np.zeros(0, dtype=bool)
-        size, pos_var = tracks.size[mt], tracks.P[mt][:, [0, 1], [0, 1]]
-        size_var = self.sizes.px_var(tracks.s[mt], tracks.Ps[mt])
-        edges_cut = border_cut(boxes, self.width, self.height)
-        cut = edges_cut.any(axis=2)
-        expected = spread = np.full((len(mt), 2), np.nan)
-        rates = self._size_rates(mt)
-        partial = anchored(tracks, mt, boxes, t, rates)
-        if cfg.own_size:
-            expected, spread = own_size(tracks.own[mt], self.field.k(tracks.x[mt, :2]))
-            expected[partial] = np.nan
-            remember_size(tracks, mt, boxes, self.field.k(boxes[:, :2] + boxes[:, 2:] / 2),
-                          cut.any(axis=1) | partial)
-        # A vehicle receding (its box shrinking: the scene's perspective and the size
-        # filter's rates) faster than its size estimate follows: the size starts again
-        # from the detection.
-        sigma = detection_sigma(cfg, np.sqrt(size.prod(axis=1)))[:, None]
-        receding = np.all(rates < 0, axis=1)
-        smaller = ((shrunk(tracks.x[mt, :2], size, boxes, sigma) & receding & ~partial)[:, None]
-                   & ~cut)
-        # A whole side is never a border-cut one (box_size.py), so `shows_whole` has no cut.
-        whole = self.sizes.update(tracks, mt, boxes[:, 2:], cut, t, expected, spread, smaller)
-        shows_whole = whole.all(axis=1) & ~split
-        self._learn_scale(mt[shows_whole], boxes[shows_whole])
-        if split.any():
-            k = mt[split]
-            s_new, Ps_new = self.sizes.initial(boxes[split, 2:], cfg.init_size_rate_sigma)
-            s_new[:, 2:], Ps_new[:, 2:, 2:] = tracks.s[k, 2:], tracks.Ps[k][:, 2:, 2:]
-            tracks.s[k], tracks.Ps[k] = s_new, Ps_new
-        centers, var = box_centre(tracks.x[mt, :2], pos_var, size, size_var, boxes, whole,
-                                  sigma, edges_cut)
-        for hist, newest in ((tracks.hist_s, np.sqrt(var)), (tracks.hist_p, centers),
-                             (tracks.hist_t, t)):
-            hist[mt, 1:] = hist[mt, :-1]  # fancy indexing copies before the write
-            hist[mt, 0] = newest
-        tracks.count[mt] = np.minimum(tracks.count[mt] + 1, 3)
-        tracks.last_box[mt] = np.hstack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
-        z, Hm, R, mask = measurement_model(tracks.hist_p[mt], tracks.hist_t[mt],
-                                           tracks.count[mt], tracks.hist_s[mt], cfg.measurement)
-        return self.bank.update(tracks, mt, z, Hm, R, mask), shows_whole
+        sizes = self.sizes.update(self.tracks, idx, boxes, t, split)
+        z, Hm, R, mask = self.centres.measure(self.tracks, idx, boxes, t, sizes)
+        return self.bank.update(self.tracks, idx, z, Hm, R, mask), sizes.shows_whole
+
+    def _start(self, t: float, centers: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """Append tentative tracks on these detections (assimilated by _assimilate next);
+        returns their indices."""
+        scale = box_scale(boxes)
+        var = np.repeat(detection_sigma(self.cfg, scale)[:, None] ** 2, 2, axis=1)
+        new = TrackTable(centre=self.bank.prior(centers, scale),
+                         history=HistoryColumns.new(len(boxes), t),
+                         box_size=self.sizes.new(boxes), life=self.initiator.new(boxes))
+        self.bank.start(new.uid, new.x, var, scale)
+        n_old = len(self.tracks)
+        self.tracks.append(new)
+        self.gaps.append(GapColumns.new(len(boxes)))
+        return np.arange(n_old, len(self.tracks))
+
+    def _delete(self, ended: np.ndarray) -> None:
+        """Remove the tracks `ended` (N,) from every role that holds per-track state."""
+        self.bank.forget(self.tracks.uid[ended])
+        self.tracks.keep(~ended)
+        self.gaps.keep(~ended)

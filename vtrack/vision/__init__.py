@@ -1,2 +1,3 @@
-"""Video input/output (`video`), the MOG2 vehicle detector (`detect`) and frame annotation
-(`annotate`). Import the submodules directly; this package imports nothing heavy."""
+"""The MOG2 vehicle detector (`detect`) and its stages, and frame annotation (`annotate`).
+Video input/output is vtrack.io. Import the submodules directly; this package imports
+nothing heavy."""

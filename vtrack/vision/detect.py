@@ -38,12 +38,13 @@ Boxes, centres and areas are mapped back to full-resolution pixels.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from vtrack.boxes import centre
 from vtrack.vision.background import Mog2Background, estimate_background
 from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi, polygon_mask
 from vtrack.vision.changed import ChangedMap
@@ -265,11 +266,10 @@ class MotionDetector:
             background = self.gain(background)
         self.background.initialise(background)
 
-    def detect(self, image: np.ndarray,
-               priors: Callable[[np.ndarray], np.ndarray] | None = None) -> Detections:
+    def detect(self, image: np.ndarray, predicted: np.ndarray | None = None) -> Detections:
         """Update the background with `image` (HxWx3 BGR uint8) and return its blobs:
-        `locate(segment(image), priors)`."""
-        return self.locate(self.segment(image), priors)
+        `locate(segment(image), predicted)`."""
+        return self.locate(self.segment(image), predicted)
 
     def segment(self, image: np.ndarray) -> Foreground:
         """The image stages (prepare, stabilise, gain, MOG2, shadows, shift tolerance,
@@ -299,15 +299,14 @@ class MotionDetector:
         learning = self.frames <= cfg.warmup_frames and not self.background.primed
         return Foreground(self.foreground, raw, moving, motion, self._camera, learning)
 
-    def locate(self, fg: Foreground,
-               priors: Callable[[np.ndarray], np.ndarray] | None = None) -> Detections:
+    def locate(self, fg: Foreground, predicted: np.ndarray | None = None) -> Detections:
         """The blobs of a segmented frame, in its pixels.
 
-        priors(motion), when given, is called once per frame with the camera's motion
-        (2, 3) and returns the tracked vehicles' predicted boxes (K, 4) in this frame's
-        pixels: a blob holding several of them is divided among them (split.py)."""
+        `predicted`, when given, holds the tracked vehicles' predicted boxes (K, 4) in this
+        frame's pixels (the tracker's prediction with the camera's motion `fg.motion`): a
+        blob holding several of them is divided among them (split.py)."""
         cfg = self.cfg
-        predicted = priors(fg.motion) if priors is not None else np.zeros((0, 4))
+        predicted = np.zeros((0, 4)) if predicted is None else predicted
         if fg.learning:
             return Detections.empty(fg.motion)
         boxes, areas, contours = find_blobs(fg.mask, fg.moving, self._sx, self._sy,
@@ -319,7 +318,7 @@ class MotionDetector:
         ref_boxes, boxes = boxes, transform_boxes(fg.camera, boxes)  # -> this frame's pixels
         if cfg.stabilise_robust:   # the fit follows the camera: the sway is a few pixels
             boxes = border_edges_kept(ref_boxes, boxes, self.width, self.height)
-        return Detections(boxes[:, :2] + boxes[:, 2:] / 2, boxes, areas, fg.motion,
+        return Detections(centre(boxes), boxes, areas, fg.motion,
                           ChangedMap(fg.labels, self._sx, self._sy, fg.camera))
 
     def _split(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],

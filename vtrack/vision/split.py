@@ -17,7 +17,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from vtrack.boxes import intersection, overlap_of_smaller
+from vtrack.boxes import centre, intersection, overlap_of_smaller
 
 REACH = 1.5        # pixels beyond 1.5 half-sizes of every predicted box belong to none
 MIN_COVER = 0.5    # share of a predicted box that must lie on the blob's bounding box
@@ -30,7 +30,7 @@ def holders(blob: np.ndarray, priors: np.ndarray) -> np.ndarray:
     each other mostly, only the first."""
     if len(priors) < 2:
         return np.zeros(0, dtype=int)
-    c = priors[:, :2] + priors[:, 2:] / 2
+    c = centre(priors)
     inside = np.all((c >= blob[:2]) & (c <= blob[:2] + blob[2:]), axis=1)
     cover = intersection(priors, blob[None]) / np.maximum(priors[:, 2] * priors[:, 3], 1e-9)
     idx = np.flatnonzero(inside & (cover >= MIN_COVER))
@@ -51,7 +51,7 @@ def split_blob(contour: np.ndarray, priors: np.ndarray, min_pixels: int
     cv2.drawContours(roi, [contour - np.array([x, y])], -1, 1, thickness=cv2.FILLED)
     v, u = np.nonzero(roi)
     pu, pv = u + x + 0.5, v + y + 0.5
-    c = priors[:, :2] + priors[:, 2:] / 2
+    c = centre(priors)
     half = np.maximum(priors[:, 2:] / 2, 0.5)
     d = np.maximum(np.abs(pu[None] - c[:, None, 0]) / half[:, None, 0],
                    np.abs(pv[None] - c[:, None, 1]) / half[:, None, 1])

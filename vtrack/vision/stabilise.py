@@ -40,6 +40,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from vtrack.boxes import on_border
+
 IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 STILL_WARP_PX = 0.25  # a transform moving no image corner further than this is no motion
 MIN_INLIERS = 12      # fewest RANSAC inliers of a fit
@@ -102,8 +104,9 @@ def border_edges_kept(ref_boxes: np.ndarray, boxes: np.ndarray, width: int, heig
         return boxes
     size = np.array([width, height], dtype=float)
     lo, hi = boxes[:, :2], boxes[:, :2] + boxes[:, 2:]
-    lo = np.where(ref_boxes[:, :2] <= 0.5, np.minimum(lo, 0.0), lo)
-    hi = np.where(ref_boxes[:, :2] + ref_boxes[:, 2:] >= size - 0.5, np.maximum(hi, size), hi)
+    cut = on_border(ref_boxes, width, height)
+    lo = np.where(cut[:, :, 0], np.minimum(lo, 0.0), lo)
+    hi = np.where(cut[:, :, 1], np.maximum(hi, size), hi)
     return np.hstack([lo, hi - lo])
 
 

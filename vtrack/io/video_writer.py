@@ -201,7 +201,7 @@ def h264_encoder() -> str | None:
 def open_video_writer(path: str | os.PathLike, fps: float, size: tuple[int, int]
                       ) -> AtomicVideoWriter:
     """The best writer available: H.264 through PyAV, else MPEG-4 Part 2 with a `warning`."""
-    from vtrack.vision.video import guarded_fps
+    from vtrack.io.video import guarded_fps
 
     fps = guarded_fps(fps)
     try:

@@ -63,7 +63,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from vtrack.errors import InputError  # noqa: E402
-from vtrack.vision.sources import Source, live_request, parse_source  # noqa: E402
+from vtrack.io.sources import Source, live_request, parse_source  # noqa: E402
 
 ABORT_HOOK_ENV = "VTRACK_TEST_DECODER_ABORT_AFTER"
 DEFAULT_FPS = 25.0        # used when the container reports no usable frame rate
@@ -540,7 +540,7 @@ class VideoReader:
     def _start(self) -> None:
         ours, theirs = socket.socketpair()
         code = ("import sys; sys.path.insert(0, sys.argv[1]); "
-                "from vtrack.vision.video import _decoder_main; _decoder_main(int(sys.argv[2]))")
+                "from vtrack.io.video import _decoder_main; _decoder_main(int(sys.argv[2]))")
         root = str(Path(__file__).resolve().parents[2])
         # The child inherits this signal mask: Ctrl-C / a group SIGTERM reach only the
         # parent, which then shuts the child down (no traceback, no exit-code race).
