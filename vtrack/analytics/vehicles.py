@@ -9,6 +9,9 @@ the camera one pixel is metres). A track with no such frame uses its other detec
 - speed_mean_kmh: the mean of the per-frame road speeds.
 - speed_max_kmh: the largest mean over a sliding window of SPEED_WINDOW_S seconds (one noisy
   frame cannot make the maximum); a track shorter than half the window reports its mean.
+- the speed at a moment (a count line's crossing, speeds.csv): SpeedTrace, the per-frame road
+  speeds of the track's good frames (its other detected frames if it has no good one)
+  interpolated linearly to that time.
 - length_m and class: LengthFit (the footprint along travel, corrected for the height the box
   includes with the class's typical height; class from the length, CLASS_BOUNDS_M).
 """
@@ -22,6 +25,7 @@ from dataclasses import dataclass, field
 SPEED_WINDOW_S = 2.0
 SPEED_SIGMA_MAX = 3.0         # m/s: a frame whose road speed the filter knows worse (far
                               # away, where a pixel is metres, or a young track) is not used
+TRACE_SAMPLES = 512           # per-frame speeds a track keeps for reading its speed at a moment
 MIN_LENGTH_SPEED = 1.0        # m/s: below this the travel direction is noise (no length sample)
 
 # Upper length bounds of each class, metres (the last is open). Between typical classes:
@@ -61,6 +65,33 @@ class SpeedStats:
     @property
     def max(self) -> float:
         return self.max_smoothed if self.max_smoothed > -math.inf else self.mean
+
+
+@dataclass
+class SpeedTrace:
+    """A track's recent per-frame road speeds (m/s), in time order, to read the speed at a
+    moment: linear interpolation between the samples around it; before the first sample the
+    first one (a crossing in rows back-filled at confirmation precedes the track's states),
+    after the last the last one. Bounded memory (the last TRACE_SAMPLES)."""
+
+    samples: deque = field(default_factory=lambda: deque(maxlen=TRACE_SAMPLES))
+
+    def add(self, t: float, v: float) -> None:
+        self.samples.append((t, v))
+
+    def at(self, t: float) -> tuple[float, bool]:
+        """(speed at time t, whether a sample at or after t exists: the value is final)."""
+        if not self.samples:
+            return math.nan, False
+        prev = None
+        for ts, v in self.samples:
+            if ts >= t:
+                if prev is None or ts == prev[0]:
+                    return v, True
+                w = (t - prev[0]) / (ts - prev[0])
+                return prev[1] + w * (v - prev[1]), True
+            prev = (ts, v)
+        return self.samples[-1][1], False
 
 
 @dataclass
@@ -112,6 +143,7 @@ class Samples:
 
     speed: SpeedStats = field(default_factory=SpeedStats)
     length: LengthFit = field(default_factory=LengthFit)
+    trace: SpeedTrace = field(default_factory=SpeedTrace)
 
 
 @dataclass
@@ -126,13 +158,21 @@ class VehicleRecord:
     detected_frames: int = 0
     good: Samples = field(default_factory=Samples)   # clear of the border, speed known well
     other: Samples = field(default_factory=Samples)
-    crossings: list = field(default_factory=list)          # (time, line, direction)
+    crossings: list = field(default_factory=list)   # [time, line, direction, speed m/s|None]
 
     def add_row(self, frame: int, time: float, detected: bool) -> None:
         self.last_frame, self.last_time = max(self.last_frame, frame), max(self.last_time, time)
         if frame < self.first_frame:
             self.first_frame, self.first_time = frame, time
         self.detected_frames += int(detected)
+
+    def speed_at(self, t: float, final: bool) -> float | None:
+        """The road speed (m/s) at time t from the good frames' trace (the other detected
+        frames' if there is no good one by the end); None while it may still change."""
+        if self.good.trace.samples or not final:
+            v, settled = self.good.trace.at(t)
+            return v if settled or final else None
+        return self.other.trace.at(t)[0]
 
     def figures(self) -> tuple[float, float, float, str]:
         """(speed_mean_kmh, speed_max_kmh, length_m, class); NaN/'' where unknown."""

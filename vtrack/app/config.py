@@ -3,6 +3,7 @@ defaults (`vtrack config --defaults` prints them). Unknown sections or keys are 
 
     count_lines = [[x1, y1, x2, y2], {name, points, units}, ...]   # top level
     [[zones]] name, polygon, units, debounce_s                      # vtrack.analytics.regions
+    [[gates]] name, line or polygon, units                          # vtrack.analytics.regions
     [detector] ...   vtrack.vision.detect.DetectorConfig
     [tracker]  ...   vtrack.tracking.tracker.TrackerConfig
     [output]   ...   OutputConfig
@@ -18,8 +19,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from vtrack.analytics.regions import (ZONE_DEBOUNCE_S, CountLine, Zone, check_unique_names,
-                                      parse_count_line, parse_zone)
+from vtrack.analytics.regions import (ZONE_DEBOUNCE_S, CountLine, Gate, Zone,
+                                      check_unique_names, parse_count_line, parse_gate,
+                                      parse_zone)
 from vtrack.errors import InputError
 from vtrack.fileio import read_toml
 from vtrack.tracking.config import TrackerConfig
@@ -47,6 +49,7 @@ class AppConfig:
     output: OutputConfig = field(default_factory=OutputConfig)
     count_lines: list[CountLine] = field(default_factory=list)
     zones: list[Zone] = field(default_factory=list)
+    gates: list[Gate] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -58,6 +61,7 @@ class AppConfig:
 
 
 SECTIONS = {"detector": DetectorConfig, "tracker": TrackerConfig, "output": OutputConfig}
+REGIONS = {"count_lines": parse_count_line, "zones": parse_zone, "gates": parse_gate}
 
 
 def _coerce(where: str, value: Any, default: Any) -> Any:
@@ -84,15 +88,15 @@ def from_dict(data: dict[str, Any], source: str = "config") -> AppConfig:
     """Build an AppConfig from parsed TOML; unknown keys and wrong types raise InputError."""
     cfg = AppConfig()
     for key, value in data.items():
-        if key in ("count_lines", "zones"):
+        if key in REGIONS:
             if not isinstance(value, list):
                 raise InputError(f"{source}: {key} must be a list")
-            parse = parse_count_line if key == "count_lines" else parse_zone
-            setattr(cfg, key, [parse(f"{source}: {key}[{k}]", v) for k, v in enumerate(value)])
+            setattr(cfg, key, [REGIONS[key](f"{source}: {key}[{k}]", v)
+                               for k, v in enumerate(value)])
             continue
         if key not in SECTIONS:
             raise InputError(f"{source}: unknown key or section {key!r} "
-                             f"(known: count_lines, zones, {', '.join(SECTIONS)})")
+                             f"(known: {', '.join(REGIONS)}, {', '.join(SECTIONS)})")
         if not isinstance(value, dict):
             raise InputError(f"{source}: [{key}] must be a table")
         section = getattr(cfg, key)
@@ -108,7 +112,7 @@ def from_dict(data: dict[str, Any], source: str = "config") -> AppConfig:
                 validate()
             except ValueError as exc:
                 raise InputError(f"{source}: {exc}") from None
-    check_unique_names(source, cfg.count_lines, cfg.zones)
+    check_unique_names(source, cfg.count_lines, cfg.zones, cfg.gates)
     return cfg
 
 
@@ -140,7 +144,14 @@ def defaults_toml() -> str:
                  "units = \"px\" | \"fraction\" and debounce_s (default "
                  f"{ZONE_DEBOUNCE_S}: {Zone.__dataclass_fields__['debounce_s'].metadata['help']}"
                  ").", 90)),
-             "zones = []", ""]
+             "zones = []",
+             *("# " + t for t in textwrap.wrap(
+                 "Gates of the turning movements (movements.csv): [[gates]] tables with name, "
+                 "line = [[x1, y1], [x2, y2]] or polygon = [[x, y], ...], and units = \"px\" | "
+                 "\"fraction\". A track passes a gate when its box centre's path crosses the "
+                 "line or enters the polygon; one that passes two or more gates makes one "
+                 "movement, from its first gate to its last.", 90)),
+             "gates = []", ""]
     cfg = AppConfig()
     for name, cls in SECTIONS.items():
         lines.append(f"[{name}]")
