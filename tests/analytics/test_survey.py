@@ -187,7 +187,7 @@ def test_calibrated_run_speeds_at_the_lines_against_the_truth(synth_video, overh
             assert float(r["p50_kmh"]) <= float(r["p85_kmh"]) <= float(r["max_kmh"])
     res = load_script("eval_survey").evaluate_speeds(truth, out)
     print("overhead seed 0 speeds:", {k: v for k, v in res.items() if k != "bins"})
-    assert res["compared"] >= 4 and res["p85_mae_kmh"] < 5.0
+    assert res["compared"] >= 4 and res["p85_mae_kmh"] < 1.5     # measured 0.49
 
 
 def _write_csv(path: Path, header: str, rows: list[str]) -> None:
@@ -256,3 +256,22 @@ def test_eval_survey_puts_gates_across_the_approaches(tmp_path, load_script):
                      "north": [[355.0, 245.0], [285.0, 245.0]],
                      "west": [[245.0, 355.0], [245.0, 285.0]],
                      "south": [[355.0, 395.0], [285.0, 395.0]]}
+
+
+def test_speed_at_a_moment_is_the_road_displacement_over_one_second():
+    """Positions 10 m/s along X at 25 fps, with a per-frame speed that is off by 20 %: the
+    speed at a moment comes from the displacement over CROSSING_WINDOW_S, final once the
+    trace reaches past the window; a single sample gives its own speed."""
+    from vtrack.analytics.vehicles import CROSSING_WINDOW_S, SpeedTrace
+
+    trace = SpeedTrace()
+    assert trace.speed_at(1.0)[1] is False
+    for k in range(25):
+        trace.add(k / 25, 12.0, np.array([10.0 * k / 25, 3.0]))
+    v, final = trace.speed_at(0.3)
+    assert v == pytest.approx(10.0) and final               # 0.0 .. 0.8 s, inside the trace
+    v, final = trace.speed_at(0.8)                           # the window ends after the trace
+    assert v == pytest.approx(10.0) and not final
+    one = SpeedTrace()
+    one.add(0.0, 12.0, np.array([0.0, 0.0]))
+    assert one.speed_at(0.0)[0] == 12.0 and CROSSING_WINDOW_S == 1.0

@@ -6,8 +6,9 @@ Paths (lines, gates and zones) use the rows of tracks.csv (FrameTracks.rows, som
 arrive late: back-filled at confirmation, or coasted rows reported at re-acquisition): lines
 and gates the box centre, zones the bottom centre of the box. Speeds and lengths use the
 filtered states of the frame (FrameTracks.states) with the ground point (x, y + h/2) of
-ground.py; a line crossing's speed (speeds.csv) is the track's per-frame road speed at the
-crossing's time (vehicles.SpeedTrace, from the frames vehicles.csv's speeds use). A track is over when its id leaves FrameTracks.ids (the
+ground.py; a line crossing's speed (speeds.csv) is the road displacement of that ground point
+over one second around the crossing (vehicles.SpeedTrace, from the frames vehicles.csv's
+speeds use). A track is over when its id leaves FrameTracks.ids (the
 tracker reports all of a track's rows by then); its vehicles.csv row, zone stays, movement and
 binned counts and speeds are then final and its accumulators are dropped, so memory stays flat
 on an endless stream. `flush` creates the files (header first, atomically) and
@@ -160,13 +161,13 @@ class TrafficAnalytics:
             rec = self._record(int(tid), self.frame, self.time)
             s = rec.good if good[i] else rec.other
             s.speed.add(self.time, float(speed[i]))
-            s.trace.add(self.time, float(speed[i]))
+            s.trace.add(self.time, float(speed[i]), self.calibration.to_world(g[i]))
             if speed[i] >= MIN_LENGTH_SPEED and np.isfinite(length[i]):
                 s.length.add(float(length[i]), float(k[i]))
 
     def _resolve_speeds(self, tid: int, final: bool) -> None:
         """Read the speed at each of a track's crossings awaiting it (VehicleRecord.speed_at),
-        once a good speed sample at or after the crossing exists (`final`: whatever the
+        once the track's good frames reach past the crossing's window (`final`: whatever the
         traces hold, NaN if nothing)."""
         waiting = False
         rec = self.vehicles[tid]

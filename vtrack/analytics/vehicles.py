@@ -9,9 +9,9 @@ the camera one pixel is metres). A track with no such frame uses its other detec
 - speed_mean_kmh: the mean of the per-frame road speeds.
 - speed_max_kmh: the largest mean over a sliding window of SPEED_WINDOW_S seconds (one noisy
   frame cannot make the maximum); a track shorter than half the window reports its mean.
-- the speed at a moment (a count line's crossing, speeds.csv): SpeedTrace, the per-frame road
-  speeds of the track's good frames (its other detected frames if it has no good one)
-  interpolated linearly to that time.
+- the speed at a moment (a count line's crossing, speeds.csv): SpeedTrace, the road
+  displacement of the filtered ground point over CROSSING_WINDOW_S around it, from the track's
+  good frames (its other detected frames if it has no good one).
 - length_m and class: LengthFit (the footprint along travel, corrected for the height the box
   includes with the class's typical height; class from the length, CLASS_BOUNDS_M).
 """
@@ -22,10 +22,13 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
+import numpy as np
+
 SPEED_WINDOW_S = 2.0
 SPEED_SIGMA_MAX = 3.0         # m/s: a frame whose road speed the filter knows worse (far
                               # away, where a pixel is metres, or a young track) is not used
-TRACE_SAMPLES = 512           # per-frame speeds a track keeps for reading its speed at a moment
+TRACE_SAMPLES = 512           # frames a track keeps for reading its speed at a moment
+CROSSING_WINDOW_S = 1.0       # the speed at a moment: the road displacement over this window
 MIN_LENGTH_SPEED = 1.0        # m/s: below this the travel direction is noise (no length sample)
 
 # Upper length bounds of each class, metres (the last is open). Between typical classes:
@@ -69,29 +72,31 @@ class SpeedStats:
 
 @dataclass
 class SpeedTrace:
-    """A track's recent per-frame road speeds (m/s), in time order, to read the speed at a
-    moment: linear interpolation between the samples around it; before the first sample the
-    first one (a crossing in rows back-filled at confirmation precedes the track's states),
-    after the last the last one. Bounded memory (the last TRACE_SAMPLES)."""
+    """A track's recent road positions (m) of its ground point, in time order, to read its
+    speed at a moment t: the distance between the positions of the samples nearest to
+    t - CROSSING_WINDOW_S / 2 and t + CROSSING_WINDOW_S / 2 over their time difference (the
+    displacement of the filtered ground point mapped onto the road); with a single sample its
+    own speed v = J_H(g) g'. Bounded memory (the last TRACE_SAMPLES)."""
 
     samples: deque = field(default_factory=lambda: deque(maxlen=TRACE_SAMPLES))
 
-    def add(self, t: float, v: float) -> None:
-        self.samples.append((t, v))
+    def add(self, t: float, v: float, position: np.ndarray) -> None:
+        """One frame: its time, road speed (m/s) and ground point's road position (m)."""
+        self.samples.append((t, v, np.asarray(position, dtype=float)))
 
-    def at(self, t: float) -> tuple[float, bool]:
-        """(speed at time t, whether a sample at or after t exists: the value is final)."""
+    def speed_at(self, t: float) -> tuple[float, bool]:
+        """(speed at time t in m/s, whether the window has closed: the value is final)."""
         if not self.samples:
             return math.nan, False
-        prev = None
-        for ts, v in self.samples:
-            if ts >= t:
-                if prev is None or ts == prev[0]:
-                    return v, True
-                w = (t - prev[0]) / (ts - prev[0])
-                return prev[1] + w * (v - prev[1]), True
-            prev = (ts, v)
-        return self.samples[-1][1], False
+        half = CROSSING_WINDOW_S / 2
+        times = np.fromiter((s[0] for s in self.samples), dtype=float, count=len(self.samples))
+        i = int(np.argmin(np.abs(times - (t - half))))
+        j = int(np.argmin(np.abs(times - (t + half))))
+        final = bool(times[-1] >= t + half)
+        if j <= i:
+            return self.samples[j][1], final
+        a, b = self.samples[i][2], self.samples[j][2]
+        return float(np.hypot(*(b - a)) / (times[j] - times[i])), final
 
 
 @dataclass
@@ -170,9 +175,9 @@ class VehicleRecord:
         """The road speed (m/s) at time t from the good frames' trace (the other detected
         frames' if there is no good one by the end); None while it may still change."""
         if self.good.trace.samples or not final:
-            v, settled = self.good.trace.at(t)
+            v, settled = self.good.trace.speed_at(t)
             return v if settled or final else None
-        return self.other.trace.at(t)[0]
+        return self.other.trace.speed_at(t)[0]
 
     def figures(self) -> tuple[float, float, float, str]:
         """(speed_mean_kmh, speed_max_kmh, length_m, class); NaN/'' where unknown."""
