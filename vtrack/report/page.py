@@ -289,8 +289,10 @@ def _line_speed_section(run: Run) -> str:
     return (head + f'<div class="charts">{"".join(charts)}</div>'
             + _table(["bin", "line", "direction", "vehicles", "mean km/h", "p50 km/h",
                       "p85 km/h", "max km/h"], table, "p85-table")
-            + "<p class=note>The speed of each vehicle as it crosses the line (its filtered "
-              "road speed at that moment), all classes; speeds.csv has them per class.</p>"
+            + "<p class=note>The speed of each vehicle as it crosses the line (the road "
+              "distance its filtered ground point covers in the second around the crossing), "
+              "all classes; speeds.csv has them per class. A bin without a crossing in a "
+              "direction has no bar.</p>"
             + "</section>")
 
 
@@ -407,17 +409,13 @@ def _map_section(run: Run) -> str:
     uri, source = _first_frame(run)
     paths, n = _paths(run)
     lines = [(c.get("name", str(k)), c["line"]) for k, c in enumerate(s["counts"])]
-    lines += [(f"gate {g['name']}", [v for p in g["line"] for v in p])
-              for g in s.get("gates") or [] if "line" in g]
     zones = [(z["name"], z["polygon"]) for z in s.get("zones") or [] if z.get("polygon")]
-    zones += [(f"gate {g['name']}", g["polygon"]) for g in s.get("gates") or []
-              if "polygon" in g]
-    svg = track_map(s["width"], s["height"], uri, paths, lines, zones)
+    gates = [(f"gate {g['name']}", g.get("line") or g["polygon"]) for g in s.get("gates") or []]
+    svg = track_map(s["width"], s["height"], uri, paths, lines, zones, gates=gates)
     shown = f"all {n} tracks" if n <= MAX_TRACKS_DRAWN else f"the first {MAX_TRACKS_DRAWN} of {n}"
     note = (f"Box-centre paths of {shown}"
             + (", coloured by class" if run.calibrated else "")
-            + f", counting lines and line gates (yellow), zones and polygon gates (cyan) over "
-              f"{source}.")
+            + f", counting lines (yellow), zones (cyan) and gates (dashed orange) over {source}.")
     lg = legend([(c, CLASS_COLOURS[c]) for c in ("motorcycle", "car", "van", "truck")]) \
         if run.calibrated else ""
     return (f'<section id="map"><h2>Tracks</h2>{lg}<figure class="map">{svg}</figure>'
