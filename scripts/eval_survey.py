@@ -147,8 +147,8 @@ def regions_toml(synth: Path, kind: str, width: int = 640, height: int = 360) ->
         for l in line_regions(world, cal, width, height)) + "]\n"
 
 
-def _gt_paths(gt: np.ndarray):
-    """(id, frame, box centre) of the true rows, each vehicle's in frame order."""
+def _paths(gt: np.ndarray):
+    """(id, frame, box centre) of MOT rows, each id's in frame order."""
     rows = gt[np.lexsort((gt[:, 0], gt[:, 1]))]
     for r in rows:
         yield int(r[1]), int(r[0]), r[2:4] + r[4:6] / 2
@@ -163,31 +163,47 @@ def _csv(path: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
-def evaluate_movements(synth: Path, run: Path) -> dict:
-    """Counted / true per ordered pair of the run's gates."""
-    s = _summary(run)
-    gates = s["gates"]
+def _gate_passes(rows: np.ndarray, gates: list[dict], fps: float
+                 ) -> tuple[dict[tuple[str, str], int], dict[str, int]]:
+    """Movements per ordered pair and passes per gate of MOT rows' box-centre paths through
+    the gates, by the rule `vtrack track` applies (GateCounter)."""
     counter = GateCounter([g["name"] for g in gates],
                           [np.array(g.get("line", g.get("polygon"))) for g in gates],
                           ["line" in g for g in gates])
-    fps = s["fps_video"] or 25.0
+    passes = dict.fromkeys(counter.names, 0)
     last = None
-    for tid, frame, centre in _gt_paths(read_mot(synth / "gt.csv", max_cols=11)):
+
+    def end(tid: int) -> None:
+        for g in counter._passes.get(tid, {}):
+            passes[counter.names[g]] += 1
+        counter.end_track(tid)
+
+    for tid, frame, centre in _paths(rows):
         if last is not None and tid != last:
-            counter.end_track(last)
+            end(last)
         counter.add(tid, frame, (frame - 1) / fps, centre)
         last = tid
     if last is not None:
-        counter.end_track(last)
-    true = {(m["from"], m["to"]): m["count"] for m in counter.summary()}
+        end(last)
+    return {(m["from"], m["to"]): m["count"] for m in counter.summary()}, passes
+
+
+def evaluate_movements(synth: Path, run: Path) -> dict:
+    """Counted / true per ordered pair of the run's gates; and per gate the tracks and the
+    true vehicles that passed it (a movement needs one track through two gates)."""
+    s = _summary(run)
+    gates, fps = s["gates"], s["fps_video"] or 25.0
+    true, true_passes = _gate_passes(read_mot(synth / "gt.csv", max_cols=11), gates, fps)
+    _, passes = _gate_passes(read_mot(run / "tracks.csv"), gates, fps)
     counted: dict[tuple[str, str], int] = defaultdict(int)
     for r in _csv(run / "movements.csv"):
         counted[(r["from"], r["to"])] += int(r["count"])
     per = [{"from": a, "to": b, "true": true[(a, b)], "counted": counted[(a, b)]}
-           for a, b in counter.pairs() if true[(a, b)] or counted[(a, b)]]
+           for a, b in true if true[(a, b)] or counted[(a, b)]]
     t, c = sum(p["true"] for p in per), sum(p["counted"] for p in per)
     return {"gates": [g["name"] for g in gates], "movements": per, "true": t, "counted": c,
-            "abs_error": sum(abs(p["counted"] - p["true"]) for p in per)}
+            "abs_error": sum(abs(p["counted"] - p["true"]) for p in per),
+            "passes": {g: {"tracked": passes[g], "true": true_passes[g]} for g in passes}}
 
 
 def evaluate_speeds(synth: Path, run: Path) -> dict:
@@ -199,7 +215,7 @@ def evaluate_speeds(synth: Path, run: Path) -> dict:
     world = _world(synth / "world.csv")
     speed = {(int(f), int(i)): v for f, i, _, _, v in world}
     true: dict[tuple[int, str, str], list[float]] = defaultdict(list)
-    for tid, frame, centre in _gt_paths(read_mot(synth / "gt.csv", max_cols=11)):
+    for tid, frame, centre in _paths(read_mot(synth / "gt.csv", max_cols=11)):
         for c in counter.add(tid, frame, (frame - 1) / fps, centre):
             v = speed.get((frame, tid))
             if v is not None:
@@ -247,6 +263,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"{m['true']:>3}")
         print(f"total counted {res['counted']} / true {res['true']}, sum of |error| "
               f"{res['abs_error']}")
+        print("gate passes, tracks / true vehicles: " + ", ".join(
+            f"{g} {p['tracked']}/{p['true']}" for g, p in res["passes"].items()))
     else:
         for b in res["bins"]:
             print(f"bin {b['bin_start_s']:>5g} s {b['line']:>4} {b['direction']:<8} n "

@@ -210,6 +210,13 @@ def test_eval_survey_on_a_tiny_input(tmp_path, load_script):
         gt.append(f"{f},2,{50 * (f - 9)},90,20,20,1,-1,-1,-1,1")
         world.append(f"{f},2,{f},0,{60 + f},4.5,car")
     (synth / "gt.csv").write_text("".join(r + "\n" for r in gt))
+    # the run tracked vehicle 1 as one track and vehicle 2 as two, split at frame 12
+    tracks = []
+    for r in gt:
+        f, tid, rest = r.split(",", 2)
+        tid = "3" if tid == "2" and int(f) >= 12 else tid
+        tracks.append(",".join([f, tid, rest.rsplit(",", 1)[0]]))
+    (run / "tracks.csv").write_text("".join(r + "\n" for r in tracks))
     _write_csv(synth / "world.csv", "frame,id,X_m,Y_m,speed_kmh,length_m,class", world)
     (run / "summary.json").write_text(json.dumps({
         "fps_video": 10.0, "bin_seconds": 1.0,
@@ -226,6 +233,8 @@ def test_eval_survey_on_a_tiny_input(tmp_path, load_script):
     assert moves["movements"] == [{"from": "A", "to": "B", "true": 1, "counted": 1},
                                   {"from": "B", "to": "A", "true": 0, "counted": 1}]
     assert (moves["true"], moves["counted"], moves["abs_error"]) == (1, 2, 1)
+    # vehicle 2 crosses A (x = 100) between frames 10 and 11: in its first track
+    assert moves["passes"] == {"A": {"tracked": 2, "true": 2}, "B": {"tracked": 1, "true": 1}}
     speeds = ev.evaluate_speeds(synth, run)
     # vehicle 1's centre passes x = 200 between frames 3 (160) and 4 (210): 44 km/h at
     # frame 4 (0.3 s, bin 0); vehicle 2's between frames 12 (160) and 13 (210): 73 km/h
