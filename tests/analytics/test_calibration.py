@@ -114,9 +114,11 @@ def test_a_good_file_loads(tmp_path):
 
 @pytest.mark.parametrize("text, message", [
     (_points(GOOD[:3]), "at least 4"),
-    (_points(GOOD[:3] + [((300, 300), (5, 0))]), "points 1, 2 and 4 are collinear"),
-    (_points(GOOD[:3] + [((100, 300), (3, 9))]), "collinear .*image"),
-    (_points(GOOD[:3] + [((150, 250), (5, 0))]), "collinear .*world"),
+    (_points(GOOD[:3] + [((300, 300), (5, 0))]),
+     r"fix no homography: no 4 of the 4 are in general position in image coordinates "
+     r"\(points 1, 2, 4 lie on one line and only point 3 is off it"),
+    (_points(GOOD[:3] + [((100, 300), (3, 9))]), r"image coordinates \(only 3 distinct"),
+    (_points(GOOD[:3] + [((150, 250), (5, 0))]), "general position in world coordinates"),
     (_points(GOOD).replace("image = [100, 300]", "image = [100]"), "two finite numbers"),
     (_points(GOOD).replace("world = [0, 0]", 'world = ["a", 0]'), "two finite numbers"),
     (_points(GOOD).replace("image = [100, 300]\n", ""), "must have exactly image"),
@@ -158,3 +160,82 @@ def test_scene_calibration_file_matches_its_camera():
     cal = parse_calibration(tomllib.loads(scene.calibration_toml()), "scene")
     probe = _image_of(scene.camera, ROAD)                   # pixels given to 0.001 px
     assert np.allclose(cal.to_world(probe), ROAD, atol=0.01)
+
+
+def _lane_points(cam: Camera, world: np.ndarray) -> str:
+    return _points(zip((tuple(round(float(v), 3) for v in p) for p in _image_of(cam, world)),
+                       (tuple(float(v) for v in w) for w in world)))
+
+
+# Six points on three lane lines (X = -3.5, 0, 3.5), near and far: every line holds a
+# collinear pair, and with a seventh point on the middle line, a collinear triple.
+LANES = np.array([(-3.5, 15.0), (-3.5, 45.0), (0.0, 15.0), (0.0, 45.0), (3.5, 15.0),
+                  (3.5, 45.0)])
+
+
+@pytest.mark.parametrize("world", [LANES, np.vstack([LANES, [(0.0, 30.0)]])])
+def test_points_measured_along_lane_lines_are_accepted(tmp_path, world):
+    """The issue's case: points along lane markings (collinear triples in image and on the
+    road) fix the homography; the fit over all of them reproduces the camera's."""
+    cam = _camera(cam_x=2.0)
+    cal = load_calibration(_write(tmp_path, _lane_points(cam, world)))
+    err = cal.errors()
+    assert err["points"] == len(world)
+    assert err["reprojection_px"]["max"] < 0.01 and err["reprojection_m"]["max"] < 0.01
+    assert 0 <= err["reprojection_px"]["mean"] <= err["reprojection_px"]["max"]
+    probe = np.array([(-6.0, 20.0), (5.0, 60.0), (1.0, 12.0)])
+    assert np.allclose(cal.to_world(_image_of(cam, probe)), probe, atol=0.02)
+    assert cal.warning() is None
+
+
+def test_a_misplaced_point_is_reported_by_its_error_and_warned(tmp_path):
+    """A point whose metres are typed 3 m wrong: accepted, its error shows in px and m, and
+    the warning names it."""
+    cam = _camera(cam_x=2.0)
+    world = np.vstack([LANES, [(0.0, 30.0)]])
+    typed = world.copy()
+    typed[6, 1] += 3.0
+    text = _points(zip((tuple(round(float(v), 3) for v in p) for p in _image_of(cam, world)),
+                       (tuple(float(v) for v in w) for w in typed)))
+    cal = load_calibration(_write(tmp_path, text))
+    err = cal.errors()
+    assert err["reprojection_m"]["max"] > 0.5 and err["reprojection_px"]["max"] > 1.0
+    message = cal.warning()
+    assert message is not None and "fit no homography well" in message
+    assert str(tmp_path / "calib.toml") in message
+
+
+@pytest.mark.parametrize("world, message", [
+    # all on one lane line
+    ([(0.0, 10.0), (0.0, 20.0), (0.0, 30.0), (0.0, 40.0), (0.0, 50.0)],
+     "points 1, 2, 3, 4, 5 lie on one line"),
+    # four on a line, one off: every 4 of them hold a collinear triple
+    ([(0.0, 10.0), (0.0, 20.0), (0.0, 30.0), (0.0, 40.0), (3.5, 20.0)],
+     "only point 5 is off it"),
+    # coincident points: two places only, plus one
+    ([(0.0, 10.0), (0.0, 10.0), (3.5, 30.0), (3.5, 30.0), (-3.5, 20.0)],
+     "only 3 distinct points"),
+])
+def test_sets_that_fix_no_homography_are_refused_with_one_line(tmp_path, world, message,
+                                                               capsys):
+    from vtrack.cli import main
+
+    cam = _camera(cam_x=2.0)
+    bad = _write(tmp_path, _lane_points(cam, np.array(world)))
+    with pytest.raises(InputError, match=message):
+        load_calibration(bad)
+    out = tmp_path / "run"
+    assert main(["track", str(tmp_path / "none.avi"), "--out", str(out), "--quiet",
+                 "--calibration", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and str(bad) in err[0]
+    assert "fix no homography" in err[0] and not out.exists()
+
+
+def test_general_quadruple_finds_one_among_collinear_triples():
+    from vtrack.analytics.calibration import general_quadruple
+
+    pts = np.array([(0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (2, 1)], dtype=float)
+    quad = general_quadruple([pts])
+    assert quad is not None and len(set(quad)) == 4
+    assert general_quadruple([pts[[0, 1, 2, 3]]]) is None

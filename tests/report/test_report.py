@@ -24,6 +24,14 @@ count_lines = [{name = "west", points = [[0.25, 0.25], [0.25, 0.8]], units = "fr
 name = "bay"
 polygon = [[0.35, 0.62], [0.55, 0.62], [0.55, 0.74], [0.35, 0.74]]
 units = "fraction"
+[[gates]]
+name = "left"
+line = [[0.1, 0.0], [0.1, 1.0]]
+units = "fraction"
+[[gates]]
+name = "right"
+polygon = [[0.88, 0.0], [1.0, 0.0], [1.0, 1.0], [0.88, 1.0]]
+units = "fraction"
 """
 
 
@@ -96,8 +104,11 @@ def test_page_sections_charts_and_tables_equal_the_csvs(calibrated_run, cli_stdo
     run = calibrated_run
     assert cli_stdout(["report", str(run)]).strip() == str(run / "report.html")
     page = Page((run / "report.html").read_text())
-    assert page.sections == ["counts", "speeds", "map", "zones"]
-    assert page.svgs == 4 + 1 + 1                     # 2 lines x 2 directions, speeds, map
+    assert page.sections == ["counts", "p85", "speeds", "movements", "map", "zones"]
+    speeds = [r for r in _rows(run / "speeds.csv") if r["class"] == "all"]
+    p85_charts = len({(r["line"], r["direction"]) for r in speeds if r["p85_kmh"]})
+    # 2 lines x 2 directions, p85 per line and direction with speeds, speeds, map
+    assert page.svgs == 4 + p85_charts + 1 + 1 and p85_charts >= 2
     assert len(page.images) == 1 and page.images[0].startswith("data:image/jpeg;base64,")
     assert all(link.startswith("data:") for link in page.links), "no network references"
     text = " ".join(page.text)
@@ -129,7 +140,21 @@ def test_page_sections_charts_and_tables_equal_the_csvs(calibrated_run, cli_stdo
                                               abs=0.05)
     assert sum(int(r[1]) for r in speed.values()) == len(vehicles)
 
+    table = page.tables["p85-table"][1:]
+    assert [[r[1], r[2], r[3], r[6]] for r in table] == [
+        [r["line"], r["direction"], r["count"], r["p85_kmh"]] for r in speeds if int(r["count"])]
+
     summary = json.loads((run / "summary.json").read_text())
+    od = page.tables["od-table"]
+    assert od[0] == ["from \\ to", "left", "right", "total out"]
+    moves = {(m["from"], m["to"]): m["count"] for m in summary["movements"]}
+    assert od[1][1:3] == ["–", str(moves[("left", "right")])]
+    assert od[2][1:3] == [str(moves[("right", "left")]), "–"]
+    assert moves[("left", "right")] + moves[("right", "left")] > 0
+    binned = defaultdict(int)
+    for r in _rows(run / "movements.csv"):
+        binned[(r["from"], r["to"])] += int(r["count"])
+    assert dict(binned) == moves
     events = _rows(run / "zone_events.csv")
     (zone_row,) = page.tables["zone-table"][1:]
     z = summary["zones"][0]
@@ -147,9 +172,11 @@ def test_first_frame_from_the_video_or_a_blank_canvas(synth_video, tmp_path, cli
                  "--count-line", "50%,0%,50%,100%"]) == 0
     cli_stdout(["report", str(run), "--quiet"])
     page = Page((run / "report.html").read_text())
-    assert page.sections == ["counts", "speeds", "map", "zones"]
+    assert page.sections == ["counts", "p85", "speeds", "movements", "map", "zones"]
     assert len(page.images) == 1 and "first frame of clip.avi" in " ".join(page.text)
     assert "no calibration" in " ".join(page.text)              # speeds section explains
+    assert "No speeds at the lines: the run has no calibration" in " ".join(page.text)
+    assert "two or more gates" in " ".join(page.text)
     assert page.tables["counts-table"][0][2:-1] == ["all"]
     video.unlink()
     cli_stdout(["report", str(run), "--quiet"])
@@ -180,11 +207,11 @@ def test_page_renders_in_a_headless_browser(calibrated_run, tmp_path):
         [str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
          "--no-first-run", "--disable-background-networking", "--disable-component-update",
          "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
-         "--window-size=1200,2300", (calibrated_run / "report.html").as_uri()],
+         "--window-size=1200,3400", (calibrated_run / "report.html").as_uri()],
         capture_output=True, timeout=120)
     assert proc.returncode == 0, proc.stderr.decode()[-500:]
     img = cv2.imread(str(shot))
-    assert img is not None and img.shape[:2] == (2300, 1200)
+    assert img is not None and img.shape[:2] == (3400, 1200)
     # the page drew charts and the frame: many distinct colours, not a blank or error page
     colours = np.unique((img[::4, ::4] // 32).reshape(-1, 3), axis=0)
     assert len(colours) > 40

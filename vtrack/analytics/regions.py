@@ -10,6 +10,10 @@ optionally named; converted to pixels once the video's size is known.
     debounce_s = 0.2              # optional
     roi = [[0.0, 0.4], [1.0, 0.4], [1.0, 1.0], [0.0, 1.0]]   # region of interest (top level)
     roi_units = "fraction"        # "px" by default
+    [[gates]]                     # where vehicles enter and leave (turning movements)
+    name = "north"
+    line = [[0.4, 0.0], [0.6, 0.0]]   # or polygon = [[x, y], ...]
+    units = "fraction"
 
 A fraction f of the width W is the pixel coordinate f * W (0 is the left edge of the image,
 1 its right edge), likewise for the height.
@@ -63,6 +67,22 @@ class Zone:
     def pixels(self, width: int, height: int) -> np.ndarray:
         """(n, 2) vertices in pixels of a width x height image."""
         return _scale(self.polygon, self.units, width, height)
+
+
+@dataclass(frozen=True)
+class Gate:
+    """A named gate of the turning movements: a segment (`line`, two points) or a polygon
+    (`polygon`, 3+ vertices), in `units`."""
+
+    name: str
+    line: tuple[tuple[float, float], tuple[float, float]] | None = None
+    polygon: tuple[tuple[float, float], ...] | None = None
+    units: str = "px"
+
+    def pixels(self, width: int, height: int) -> np.ndarray:
+        """(2, 2) segment ends or (n, 2) polygon vertices in pixels."""
+        return _scale(self.line if self.line is not None else self.polygon, self.units,
+                      width, height)
 
 
 @dataclass(frozen=True)
@@ -170,7 +190,8 @@ def parse_zone(where: str, value: Any) -> Zone:
     _table(where, value, {"name", "polygon", "units", "debounce_s"}, {"name", "polygon"})
     name = _name(where, value["name"])
     where = f"{where} {name!r}"
-    poly, units = _polygon(where, value["polygon"], value.get("units", "px"))
+    poly = _polygon(where, value["polygon"])
+    units = _units(where, value.get("units", "px"), poly)
     debounce = value.get("debounce_s", ZONE_DEBOUNCE_S)
     if isinstance(debounce, bool) or not isinstance(debounce, (int, float)) or not (
             0 <= debounce < math.inf):
@@ -180,16 +201,36 @@ def parse_zone(where: str, value: Any) -> Zone:
 
 def parse_roi(where: str, polygon: Any, units: Any = "px") -> Roi:
     """roi = [[x, y], ...] (3+ vertices, simple, non-zero area) with roi_units."""
-    poly, units = _polygon(where, polygon, units)
-    return Roi(tuple(poly), units)
+    poly = _polygon(where, polygon)
+    return Roi(tuple(poly), _units(where, units, poly))
 
 
-def _polygon(where: str, value: Any, units: Any) -> tuple[list[tuple[float, float]], str]:
-    """A simple polygon of 3+ vertices with non-zero area (shoelace), and its units."""
+def parse_gate(where: str, value: Any) -> Gate:
+    """{name, line = [[x1, y1], [x2, y2]] or polygon = [[x, y], ...], units}."""
+    if not isinstance(value, dict):
+        raise InputError(f"{where}: a gate is a table with name and line or polygon")
+    _table(where, value, {"name", "line", "polygon", "units"}, {"name"})
+    name = _name(where, value["name"])
+    where = f"{where} {name!r}"
+    if ("line" in value) == ("polygon" in value):
+        raise InputError(f"{where}: give either line = [[x1, y1], [x2, y2]] or polygon")
+    if "line" in value:
+        pts = _points(f"{where} line", value["line"])
+        if len(pts) != 2:
+            raise InputError(f"{where}: a gate's line has exactly two points")
+        if pts[0] == pts[1]:
+            raise InputError(f"{where}: the gate's line has zero length")
+        units = _units(where, value.get("units", "px"), pts)
+        return Gate(name, line=(pts[0], pts[1]), units=units)
+    poly = _polygon(where, value["polygon"])
+    return Gate(name, polygon=tuple(poly), units=_units(where, value.get("units", "px"), poly))
+
+
+def _polygon(where: str, value: Any) -> list[tuple[float, float]]:
+    """A polygon's vertices: 3+, simple (no two edges cross), non-zero area."""
     poly = _points(f"{where} polygon", value)
     if len(poly) < 3:
         raise InputError(f"{where}: a polygon needs at least 3 vertices")
-    units = _units(where, units, poly)
     p = np.array(poly)
     n = len(p)
     for i in range(n):
@@ -201,13 +242,14 @@ def _polygon(where: str, value: Any, units: Any) -> tuple[list[tuple[float, floa
     area = 0.5 * abs(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1)))
     if not area > 0:
         raise InputError(f"{where}: polygon has zero area")
-    return poly, units
+    return poly
 
 
-def check_unique_names(source: str, lines: Sequence[CountLine], zones: Sequence[Zone]) -> None:
-    """Line names and zone names must each be unique (they label rows of the CSVs)."""
+def check_unique_names(source: str, lines: Sequence[CountLine], zones: Sequence[Zone],
+                       gates: Sequence[Gate] = ()) -> None:
+    """Line, zone and gate names must each be unique (they label rows of the CSVs)."""
     for kind, names in (("count line", [l.name for l in lines if l.name]),
-                        ("zone", [z.name for z in zones])):
+                        ("zone", [z.name for z in zones]), ("gate", [g.name for g in gates])):
         seen: set[str] = set()
         for n in names:
             if n in seen:

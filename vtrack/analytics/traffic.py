@@ -1,13 +1,17 @@
 """The traffic analytics of one run: fed the tracker's output frame by frame, writes
-vehicles.csv, counts.csv, crossings.csv and zone_events.csv and gives summary.json its
-`counts`, `zones` and `calibration` keys.
+vehicles.csv, counts.csv, crossings.csv, zone_events.csv, movements.csv and speeds.csv and
+gives summary.json its `counts`, `zones`, `movements` and `calibration` keys.
 
-Paths (lines and zones) use the rows of tracks.csv (FrameTracks.rows, some of which arrive
-late: back-filled at confirmation, or coasted rows reported at re-acquisition); speeds and
-lengths use the filtered states of the frame (FrameTracks.states). A track is over when its id
-leaves FrameTracks.ids (the tracker reports all of a track's rows by then); its vehicles.csv
-row, zone stays and binned counts are then final and its accumulators are dropped, so memory
-stays flat on an endless stream. `flush` creates the files (header first, atomically) and
+Paths (lines, gates and zones) use the rows of tracks.csv (FrameTracks.rows, some of which
+arrive late: back-filled at confirmation, or coasted rows reported at re-acquisition): lines
+and gates the box centre, zones the bottom centre of the box. Speeds and lengths use the
+filtered states of the frame (FrameTracks.states) with the ground point (x, y + h/2) of
+ground.py; a line crossing's speed (speeds.csv) is the road displacement of that ground point
+over one second around the crossing (vehicles.SpeedTrace, from the frames vehicles.csv's
+speeds use). A track is over when its id leaves FrameTracks.ids (the
+tracker reports all of a track's rows by then); its vehicles.csv row, zone stays, movement and
+binned counts and speeds are then final and its accumulators are dropped, so memory stays flat
+on an endless stream. `flush` creates the files (header first, atomically) and
 afterwards only appends the rows that became final, so a periodic flush never rewrites a
 growing file.
 """
@@ -20,13 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from vtrack.analytics.bins import CountBins
+from vtrack.analytics.bins import DIRECTIONS, TimeBins, count_rows, speed_rows
 from vtrack.analytics.calibration import Calibration
 from vtrack.analytics.camera import camera_from_homography
 from vtrack.analytics.ground import (contact_points, contact_velocities, footprint_samples,
                                      speed_sigmas)
+from vtrack.analytics.gates import GateCounter
 from vtrack.analytics.lines import LineCounter
-from vtrack.analytics.regions import CountLine, Zone
+from vtrack.analytics.regions import CountLine, Gate, Zone
 from vtrack.analytics.vehicles import (CLASSES, MIN_LENGTH_SPEED, SPEED_SIGMA_MAX,
                                        VehicleRecord)
 from vtrack.analytics.zones import ZoneCounter
@@ -39,6 +44,9 @@ HEADERS = {
     "counts.csv": ["bin_start_s", "bin_end_s", "line", "direction", "class", "count"],
     "crossings.csv": ["frame", "time_s", "id", "line", "direction"],
     "zone_events.csv": ["id", "zone", "enter_frame", "exit_frame", "enter_time_s", "dwell_s"],
+    "movements.csv": ["bin_start_s", "bin_end_s", "from", "to", "class", "count"],
+    "speeds.csv": ["bin_start_s", "bin_end_s", "line", "direction", "class", "count",
+                   "mean_kmh", "p50_kmh", "p85_kmh", "max_kmh"],
 }
 TIME_HORIZON_FRAMES = 8192
 BORDER_MARGIN = 0.01         # a box this close to the image border (fraction of the image's
@@ -51,7 +59,7 @@ class TrafficAnalytics:
     def __init__(self, out_dir: str | Path, width: int, height: int, fps: float,
                  lines: Sequence[CountLine] = (), zones: Sequence[Zone] = (),
                  calibration: Calibration | None = None, bin_seconds: float = 60.0,
-                 bin_settle_s: float = 120.0) -> None:
+                 bin_settle_s: float = 120.0, gates: Sequence[Gate] = ()) -> None:
         if calibration is not None:
             calibration.check_frame_size(width, height)
         self.out = Path(out_dir)
@@ -66,9 +74,17 @@ class TrafficAnalytics:
         self.calibration = calibration
         self.camera = (camera_from_homography(calibration.H, width, height)
                        if calibration is not None else None)
-        self.bins = CountBins(bin_seconds, [l.name or str(k) for k, l in enumerate(self.lines)],
-                              CLASSES if calibration is not None else ("all",), bin_settle_s)
+        self.gates = GateCounter([g.name for g in gates],
+                                 [g.pixels(width, height) for g in gates],
+                                 [g.line is not None for g in gates])
+        self.classes = CLASSES if calibration is not None else ("all",)
+        self.line_keys = [(l.name or str(k), d) for k, l in enumerate(self.lines)
+                          for d in DIRECTIONS]
+        self.bins = TimeBins(bin_seconds, bin_settle_s)             # counts.csv
+        self.movement_bins = TimeBins(bin_seconds, bin_settle_s)    # movements.csv
+        self.speed_bins = TimeBins(bin_seconds, bin_settle_s)       # speeds.csv
         self.vehicles: dict[int, VehicleRecord] = {}
+        self._unresolved: set[int] = set()    # tracks with a crossing awaiting its speed
         self._times: dict[int, float] = {}
         self._pending: dict[str, list[list]] = {name: [] for name in HEADERS}
         self._created = False
@@ -78,7 +94,8 @@ class TrafficAnalytics:
     def add_frame(self, frame: int, time: float, ft: FrameTracks) -> None:
         """One processed frame: its time (s), the tracks and the rows the tracker emitted."""
         self.frame, self.time = frame, time
-        self.bins.start(time)
+        for bins in (self.bins, self.movement_bins, self.speed_bins):
+            bins.start(time)
         self._times[frame] = time
         if len(self._times) > TIME_HORIZON_FRAMES:
             del self._times[next(iter(self._times))]
@@ -87,6 +104,8 @@ class TrafficAnalytics:
             self._add_row(int(r[0]), int(r[1]), r[2:6], bool(r[6] >= 1.0))
         if self.calibration is not None and len(ft.ids):
             self._sample(ft)
+            for tid in list(self._unresolved):
+                self._resolve_speeds(tid, final=False)
         alive = set(ft.ids.tolist())
         for tid in [t for t in self.vehicles if t not in alive]:
             self._finish(tid)
@@ -106,10 +125,13 @@ class TrafficAnalytics:
         rec = self._record(tid, frame, t)
         rec.add_row(frame, t, detected)
         x, y, w, h = (float(v) for v in box)
-        for c in self.counter.add(tid, frame, t, np.array([x + w / 2, y + h / 2])):
-            rec.crossings.append((c.time, c.line, c.direction))
+        centre = np.array([x + w / 2, y + h / 2])
+        for c in self.counter.add(tid, frame, t, centre):
+            rec.crossings.append([c.time, c.line, c.direction, None])
+            self._unresolved.add(tid)
             self._pending["crossings.csv"].append(
                 [c.frame, f"{c.time:.4f}", c.id, self._label(c.line), c.direction])
+        self.gates.add(tid, frame, t, centre)
         for ev in self.zones.add(tid, frame, t, np.array([x + w / 2, y + h])):
             self._pending["zone_events.csv"].append(ev.row())
 
@@ -139,17 +161,40 @@ class TrafficAnalytics:
             rec = self._record(int(tid), self.frame, self.time)
             s = rec.good if good[i] else rec.other
             s.speed.add(self.time, float(speed[i]))
+            s.trace.add(self.time, float(speed[i]), self.calibration.to_world(g[i]))
             if speed[i] >= MIN_LENGTH_SPEED and np.isfinite(length[i]):
                 s.length.add(float(length[i]), float(k[i]))
 
+    def _resolve_speeds(self, tid: int, final: bool) -> None:
+        """Read the speed at each of a track's crossings awaiting it (VehicleRecord.speed_at),
+        once the track's good frames reach past the crossing's window (`final`: whatever the
+        traces hold, NaN if nothing)."""
+        waiting = False
+        rec = self.vehicles[tid]
+        for c in rec.crossings:
+            if c[3] is None:
+                c[3] = rec.speed_at(c[0], final)
+                waiting = waiting or c[3] is None
+        if not waiting:
+            self._unresolved.discard(tid)
+
     def _finish(self, tid: int) -> None:
+        if tid in self._unresolved:
+            self._resolve_speeds(tid, final=True)
         rec = self.vehicles.pop(tid)
         self.counter.forget(tid)
         self._pending["zone_events.csv"].extend(ev.row() for ev in self.zones.end_track(tid))
         calibrated = self.calibration is not None
         cls = (rec.figures()[3] or "unknown") if calibrated else "all"
-        for time, line, direction in rec.crossings:
-            self.bins.add(time, line, direction, cls)
+        for time, line, direction, speed in rec.crossings:
+            key = self.line_keys[2 * line + DIRECTIONS.index(direction)]
+            self.bins.add(time, key, cls)
+            if calibrated and speed is not None and np.isfinite(speed):
+                for c in (cls, "all"):
+                    self.speed_bins.add(time, key, c, 3.6 * speed)
+        movement = self.gates.end_track(tid)
+        if movement is not None:
+            self.movement_bins.add(movement.time, (movement.origin, movement.destination), cls)
         self._pending["vehicles.csv"].append(rec.row(calibrated))
 
     # ------------------------------------------------------------------- writing
@@ -160,16 +205,25 @@ class TrafficAnalytics:
     def flush(self, final: bool = False) -> dict[str, Any]:
         """Write what became final since the last flush (all of it with `final`: the run is
         over and live tracks end here); returns summary.json's `counts`, `zones`,
-        `bin_seconds` and, when calibrated, `calibration`."""
+        `movements`, `gates`, `bin_seconds` and `calibration` (None without one)."""
         if final:
             for tid in list(self.vehicles):
                 self._finish(tid)
-            self._pending["counts.csv"] += self.bins.pop_final(
-                self.time, None, run_end=self.time + 1.0 / self.fps)
+            end = self.time + 1.0 / self.fps
+            counts, movements, speeds = (
+                b.pop_final(self.time, None, run_end=end)
+                for b in (self.bins, self.movement_bins, self.speed_bins))
         else:
-            pending = [t for rec in self.vehicles.values() for t, _, _ in rec.crossings]
-            self._pending["counts.csv"] += self.bins.pop_final(
-                self.time, min(pending) if pending else None)
+            pending = [c[0] for rec in self.vehicles.values() for c in rec.crossings]
+            first = min(pending) if pending else None
+            counts = self.bins.pop_final(self.time, first)
+            speeds = self.speed_bins.pop_final(self.time, first)
+            movements = self.movement_bins.pop_final(self.time, self.gates.pending_from())
+        self._pending["counts.csv"] += count_rows(counts, self.line_keys, self.classes)
+        self._pending["movements.csv"] += count_rows(movements, self.gates.pairs(),
+                                                     self.classes)
+        if self.calibration is not None:
+            self._pending["speeds.csv"] += speed_rows(speeds, self.line_keys, CLASSES)
         for name, header in HEADERS.items():
             rows, self._pending[name] = self._pending[name], []
             if self._created:
@@ -186,7 +240,8 @@ class TrafficAnalytics:
             if line.name:
                 c["name"] = line.name
         out: dict[str, Any] = {"counts": counts, "zones": self.zones.summary(),
-                               "bin_seconds": self.bins.bin_seconds}
+                               "movements": self.gates.summary(), "gates": self._gates(),
+                               "bin_seconds": self.bins.bin_seconds, "calibration": None}
         if self.calibration is not None:
             cal = {"file": self.calibration.source, **self.calibration.errors()}
             if self.camera is not None:
@@ -194,3 +249,10 @@ class TrafficAnalytics:
                 cal["focal_px"] = round(self.camera.focal, 1)
             out["calibration"] = cal
         return out
+
+    def _gates(self) -> list[dict]:
+        """summary.json `gates`: each gate's name and its line or polygon in pixels."""
+        return [{"name": n, ("line" if line else "polygon"):
+                 [[round(float(x), 2), round(float(y), 2)] for x, y in shape]}
+                for n, shape, line in zip(self.gates.names, self.gates.shapes,
+                                          self.gates.is_line)]

@@ -9,6 +9,9 @@ the camera one pixel is metres). A track with no such frame uses its other detec
 - speed_mean_kmh: the mean of the per-frame road speeds.
 - speed_max_kmh: the largest mean over a sliding window of SPEED_WINDOW_S seconds (one noisy
   frame cannot make the maximum); a track shorter than half the window reports its mean.
+- the speed at a moment (a count line's crossing, speeds.csv): SpeedTrace, the road
+  displacement of the filtered ground point over CROSSING_WINDOW_S around it, from the track's
+  good frames (its other detected frames if it has no good one).
 - length_m and class: LengthFit (the footprint along travel, corrected for the height the box
   includes with the class's typical height; class from the length, CLASS_BOUNDS_M).
 """
@@ -19,9 +22,13 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
+import numpy as np
+
 SPEED_WINDOW_S = 2.0
 SPEED_SIGMA_MAX = 3.0         # m/s: a frame whose road speed the filter knows worse (far
                               # away, where a pixel is metres, or a young track) is not used
+TRACE_SAMPLES = 512           # frames a track keeps for reading its speed at a moment
+CROSSING_WINDOW_S = 1.0       # the speed at a moment: the road displacement over this window
 MIN_LENGTH_SPEED = 1.0        # m/s: below this the travel direction is noise (no length sample)
 
 # Upper length bounds of each class, metres (the last is open). Between typical classes:
@@ -61,6 +68,35 @@ class SpeedStats:
     @property
     def max(self) -> float:
         return self.max_smoothed if self.max_smoothed > -math.inf else self.mean
+
+
+@dataclass
+class SpeedTrace:
+    """A track's recent road positions (m) of its ground point, in time order, to read its
+    speed at a moment t: the distance between the positions of the samples nearest to
+    t - CROSSING_WINDOW_S / 2 and t + CROSSING_WINDOW_S / 2 over their time difference (the
+    displacement of the filtered ground point mapped onto the road); with a single sample its
+    own speed v = J_H(g) g'. Bounded memory (the last TRACE_SAMPLES)."""
+
+    samples: deque = field(default_factory=lambda: deque(maxlen=TRACE_SAMPLES))
+
+    def add(self, t: float, v: float, position: np.ndarray) -> None:
+        """One frame: its time, road speed (m/s) and ground point's road position (m)."""
+        self.samples.append((t, v, np.asarray(position, dtype=float)))
+
+    def speed_at(self, t: float) -> tuple[float, bool]:
+        """(speed at time t in m/s, whether the window has closed: the value is final)."""
+        if not self.samples:
+            return math.nan, False
+        half = CROSSING_WINDOW_S / 2
+        times = np.fromiter((s[0] for s in self.samples), dtype=float, count=len(self.samples))
+        i = int(np.argmin(np.abs(times - (t - half))))
+        j = int(np.argmin(np.abs(times - (t + half))))
+        final = bool(times[-1] >= t + half)
+        if j <= i:
+            return self.samples[j][1], final
+        a, b = self.samples[i][2], self.samples[j][2]
+        return float(np.hypot(*(b - a)) / (times[j] - times[i])), final
 
 
 @dataclass
@@ -112,6 +148,7 @@ class Samples:
 
     speed: SpeedStats = field(default_factory=SpeedStats)
     length: LengthFit = field(default_factory=LengthFit)
+    trace: SpeedTrace = field(default_factory=SpeedTrace)
 
 
 @dataclass
@@ -126,13 +163,21 @@ class VehicleRecord:
     detected_frames: int = 0
     good: Samples = field(default_factory=Samples)   # clear of the border, speed known well
     other: Samples = field(default_factory=Samples)
-    crossings: list = field(default_factory=list)          # (time, line, direction)
+    crossings: list = field(default_factory=list)   # [time, line, direction, speed m/s|None]
 
     def add_row(self, frame: int, time: float, detected: bool) -> None:
         self.last_frame, self.last_time = max(self.last_frame, frame), max(self.last_time, time)
         if frame < self.first_frame:
             self.first_frame, self.first_time = frame, time
         self.detected_frames += int(detected)
+
+    def speed_at(self, t: float, final: bool) -> float | None:
+        """The road speed (m/s) at time t from the good frames' trace (the other detected
+        frames' if there is no good one by the end); None while it may still change."""
+        if self.good.trace.samples or not final:
+            v, settled = self.good.trace.speed_at(t)
+            return v if settled or final else None
+        return self.other.trace.speed_at(t)[0]
 
     def figures(self) -> tuple[float, float, float, str]:
         """(speed_mean_kmh, speed_max_kmh, length_m, class); NaN/'' where unknown."""

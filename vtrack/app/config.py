@@ -5,6 +5,7 @@ defaults (`vtrack config --defaults` prints them). Unknown sections or keys are 
     roi = [[x, y], ...], roi_units = "px"|"fraction"                 # top level, optional
     calibration = "CALIB.toml"    # top level, optional; relative to this file
     [[zones]] name, polygon, units, debounce_s                      # vtrack.analytics.regions
+    [[gates]] name, line or polygon, units                          # vtrack.analytics.regions
     [detector] ...   vtrack.vision.detect.DetectorConfig
     [tracker]  ...   vtrack.tracking.tracker.TrackerConfig
     [output]   ...   OutputConfig
@@ -20,8 +21,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from vtrack.analytics.regions import (ZONE_DEBOUNCE_S, CountLine, Roi, Zone,
-                                      check_unique_names, parse_count_line, parse_roi,
+from vtrack.analytics.regions import (ZONE_DEBOUNCE_S, CountLine, Gate, Roi, Zone,
+                                      check_unique_names, parse_count_line, parse_gate,
+                                      parse_roi,
                                       parse_zone)
 from vtrack.errors import InputError
 from vtrack.fileio import read_toml
@@ -52,6 +54,7 @@ class AppConfig:
     zones: list[Zone] = field(default_factory=list)
     roi: Roi | None = None            # the detector sees only inside this polygon
     calibration: str | None = None    # CALIB.toml (resolved against the config's folder)
+    gates: list[Gate] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -63,6 +66,7 @@ class AppConfig:
 
 
 SECTIONS = {"detector": DetectorConfig, "tracker": TrackerConfig, "output": OutputConfig}
+REGIONS = {"count_lines": parse_count_line, "zones": parse_zone, "gates": parse_gate}
 
 
 def _coerce(where: str, value: Any, default: Any) -> Any:
@@ -85,7 +89,7 @@ def _coerce(where: str, value: Any, default: Any) -> Any:
     return value
 
 
-TOP_KEYS = ("count_lines", "zones", "roi", "roi_units", "calibration")
+SCALAR_KEYS = ("roi", "roi_units", "calibration")   # top-level keys besides REGIONS
 
 
 def from_dict(data: dict[str, Any], source: str = "config",
@@ -103,17 +107,18 @@ def from_dict(data: dict[str, Any], source: str = "config",
             raise InputError(f"{source}: calibration must be the path of a CALIB.toml file")
         cfg.calibration = str(base / path if base is not None else Path(path))
     for key, value in data.items():
-        if key in ("roi", "roi_units", "calibration"):
+        if key in SCALAR_KEYS:
             continue
-        if key in ("count_lines", "zones"):
+        if key in REGIONS:
             if not isinstance(value, list):
                 raise InputError(f"{source}: {key} must be a list")
-            parse = parse_count_line if key == "count_lines" else parse_zone
-            setattr(cfg, key, [parse(f"{source}: {key}[{k}]", v) for k, v in enumerate(value)])
+            setattr(cfg, key, [REGIONS[key](f"{source}: {key}[{k}]", v)
+                               for k, v in enumerate(value)])
             continue
         if key not in SECTIONS:
             raise InputError(f"{source}: unknown key or section {key!r} "
-                             f"(known: {', '.join(TOP_KEYS)}, {', '.join(SECTIONS)})")
+                             f"(known: {', '.join([*REGIONS, *SCALAR_KEYS])}, "
+                             f"{', '.join(SECTIONS)})")
         if not isinstance(value, dict):
             raise InputError(f"{source}: [{key}] must be a table")
         section = getattr(cfg, key)
@@ -129,7 +134,7 @@ def from_dict(data: dict[str, Any], source: str = "config",
                 validate()
             except ValueError as exc:
                 raise InputError(f"{source}: {exc}") from None
-    check_unique_names(source, cfg.count_lines, cfg.zones)
+    check_unique_names(source, cfg.count_lines, cfg.zones, cfg.gates)
     return cfg
 
 
@@ -169,7 +174,14 @@ def defaults_toml() -> str:
              "# Ground-plane calibration (CALIB.toml, a path relative to this file); "
              "--calibration",
              "# overrides it.",
-             "# calibration = \"site.calibration.toml\"", ""]
+             "# calibration = \"site.calibration.toml\"",
+             *("# " + t for t in textwrap.wrap(
+                 "Gates of the turning movements (movements.csv): [[gates]] tables with name, "
+                 "line = [[x1, y1], [x2, y2]] or polygon = [[x, y], ...], and units = \"px\" | "
+                 "\"fraction\". A track passes a gate when its box centre's path crosses the "
+                 "line or enters the polygon; one that passes two or more gates makes one "
+                 "movement, from its first gate to its last.", 90)),
+             "gates = []", ""]
     cfg = AppConfig()
     for name, cls in SECTIONS.items():
         lines.append(f"[{name}]")

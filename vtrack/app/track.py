@@ -108,10 +108,12 @@ class TrackJob:
             self.analytics = TrafficAnalytics(
                 self.out, self.info.width, self.info.height, self.info.fps,
                 self.cfg.count_lines, self.cfg.zones, self.opts.calibration,
-                self.opts.bin_seconds)
+                self.opts.bin_seconds, gates=self.cfg.gates)
         except BaseException:
             self.reader.close()
             raise
+        if self.opts.calibration is not None and (warning := self.opts.calibration.warning()):
+            self.opts.warn(warning)
         self._prepare_out_dir()
         parts: list[Any] = []   # progress bar, video writer, rerun logger: closed at the end
         try:
@@ -234,7 +236,8 @@ class TrackJob:
         # earlier run (tracks.csv, crossings.csv and summary.json are replaced at the
         # first flush).
         for stale in ("annotated.mp4", "decoder.log", "detections.csv", "vehicles.csv",
-                      "counts.csv", "zone_events.csv", "crossings.csv"):
+                      "counts.csv", "zone_events.csv", "crossings.csv", "movements.csv",
+                      "speeds.csv"):
             (self.out / stale).unlink(missing_ok=True)
         if (self.out / "frames").exists() or self.opts.save_frames:
             replace_dir(self.out / "frames")

@@ -96,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
               f"{summary['fps_processed']} fps -> {out}" + (f"; {counts}" if counts else ""))
         cal = summary.get("calibration")
         if cal:
+            px, m = cal["reprojection_px"], cal["reprojection_m"]
             print(f"calibration {cal['file']}: {cal['points']} points, reprojection error "
-                  f"{cal['reprojection_rms_px']:.2f} px RMS ({cal['world_rms_m']:.3f} m)")
+                  f"mean {px['mean']:.2f} px / {m['mean']:.3f} m, max {px['max']:.2f} px / "
+                  f"{m['max']:.3f} m")
     return 0

@@ -1,7 +1,7 @@
 """`vtrack report RUN_DIR`: one self-contained HTML page summarising a `vtrack track` run.
 
-Reads summary.json and tracks.csv (required) and counts.csv, vehicles.csv, zone_events.csv
-(when the run wrote them); writes RUN_DIR/report.html atomically. Charts are inline SVG and
+Reads summary.json and tracks.csv (required) and counts.csv, vehicles.csv, zone_events.csv,
+movements.csv and speeds.csv (when the run wrote them); writes RUN_DIR/report.html atomically. Charts are inline SVG and
 the first frame is a base64 JPEG inside the SVG, so the page needs no network. The first
 frame comes from frames/000001.jpg (--save-frames), else from the video named in
 summary.json, else the tracks are drawn on a blank canvas of the video's size (the page says
@@ -42,10 +42,12 @@ class Run:
     counts: list[dict] | None
     vehicles: list[dict] | None
     zone_events: list[dict] | None
+    movements: list[dict] | None = None
+    speeds: list[dict] | None = None
 
     @property
     def calibrated(self) -> bool:
-        return "calibration" in self.summary
+        return self.summary.get("calibration") is not None
 
 
 def _read_csv(path: Path) -> list[dict] | None:
@@ -76,7 +78,8 @@ def load_run(run_dir: str | Path) -> Run:
         raise InputError(f"{d / 'summary.json'}: missing keys of a run summary "
                          f"({', '.join(need)})")
     return Run(d, summary, _read_csv(d / "counts.csv"), _read_csv(d / "vehicles.csv"),
-               _read_csv(d / "zone_events.csv"))
+               _read_csv(d / "zone_events.csv"), _read_csv(d / "movements.csv"),
+               _read_csv(d / "speeds.csv"))
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -133,14 +136,23 @@ def _header(run: Run) -> str:
              ("frames", s["frames"]), ("frame size", f"{s['width']}x{s['height']}")]
     if "bin_seconds" in s:
         facts.append(("time bin", _duration(s["bin_seconds"])))
-    cal = s.get("calibration")
-    facts.append(("calibration", f"{cal['points']} points, {cal['reprojection_rms_px']:.2f} px "
-                  f"RMS" if cal else "none (no speeds or classes)"))
+    facts.append(("calibration", _calibration_fact(s.get("calibration"))))
     if not s.get("complete", True):
         facts.append(("run", "incomplete (interrupted)"))
     items = "".join(f"<div><dt>{escape(k)}</dt><dd>{escape(str(v))}</dd></div>" for k, v in facts)
     return (f"<header><h1>Traffic report</h1><p class=sub>{escape(Path(s['video']).name)}</p>"
             f"<dl class=facts>{items}</dl></header>")
+
+
+def _calibration_fact(cal: dict | None) -> str:
+    """The calibration's points and reprojection error (mean / max, px and m)."""
+    if not cal:
+        return "none (no speeds or classes)"
+    px, m = cal.get("reprojection_px"), cal.get("reprojection_m")
+    if not (px and m):                       # a summary of an older run: RMS only
+        return f"{cal['points']} points, {cal['reprojection_rms_px']:.2f} px RMS"
+    return (f"{cal['points']} points, reprojection error mean {px['mean']:.2f} px / "
+            f"{m['mean']:.2f} m, max {px['max']:.2f} px / {m['max']:.2f} m")
 
 
 def _cards(run: Run) -> str:
@@ -173,10 +185,7 @@ def _counts_section(run: Run) -> str:
         return ('<section id="counts"><h2>Counts per time bin</h2><p class=note>No counting '
                 'lines were set (--count-line or count_lines in the config).</p></section>')
     classes = _classes(run)
-    starts = sorted({_num(r["bin_start_s"]) for r in run.counts})
-    with_hours = max(starts, default=0) >= 3600 or (
-        len(starts) > 1 and starts[1] - starts[0] >= 600)
-    labels = [_clock(t, with_hours) for t in starts]
+    starts, labels = _bin_labels(run.counts)
     idx = {t: i for i, t in enumerate(starts)}
     grid: dict[tuple[str, str, str], list[float]] = defaultdict(lambda: [0.0] * len(starts))
     for r in run.counts:
@@ -236,6 +245,100 @@ def _speed_section(run: Run) -> str:
             + f"<figure>{chart}</figure>"
             + _table(["class", "vehicles", "mean speed km/h", "85th percentile km/h",
                       "max speed km/h", "mean length m"], rows, "speed-table")
+            + "</section>")
+
+
+def _bin_labels(rows: list[dict]) -> tuple[list[float], list[str]]:
+    """The bins' start times and their clock labels (h:mm for long runs or bins, else m:ss)."""
+    starts = sorted({_num(r["bin_start_s"]) for r in rows})
+    with_hours = max(starts, default=0) >= 3600 or (
+        len(starts) > 1 and starts[1] - starts[0] >= 600)
+    return starts, [_clock(t, with_hours) for t in starts]
+
+
+def _line_speed_section(run: Run) -> str:
+    """The 85th-percentile speed at each count line per bin and direction (speeds.csv)."""
+    head = '<section id="p85"><h2>Speeds at the count lines per time bin</h2>'
+    if run.speeds is None or not run.calibrated or not run.summary["counts"]:
+        why = ("the run has no speeds.csv" if run.speeds is None else
+               "the run has no calibration (vtrack track --calibration CALIB.toml)"
+               if not run.calibrated else "no counting lines were set")
+        return f"{head}<p class=note>No speeds at the lines: {escape(why)}.</p></section>"
+    rows = [r for r in run.speeds if r["class"] == "all"]
+    starts, labels = _bin_labels(rows)
+    idx = {t: i for i, t in enumerate(starts)}
+    p85: dict[tuple[str, str], list[float]] = defaultdict(lambda: [math.nan] * len(starts))
+    for r in rows:
+        p85[(r["line"], r["direction"])][idx[_num(r["bin_start_s"])]] = _num(r["p85_kmh"])
+    charts, table = [], []
+    for (line, direction), values in p85.items():
+        if not any(math.isfinite(v) for v in values):
+            continue
+        chart = bar_chart(labels, [("p85", "#2f80ed", [v if math.isfinite(v) else 0.0
+                                                       for v in values])],
+                          width=470, height=190, y_label="km/h",
+                          title=f"line {line} · {direction} · 85th percentile speed")
+        charts.append(f"<figure>{chart}</figure>")
+    for r in rows:
+        if int(r["count"]):
+            table.append([labels[idx[_num(r["bin_start_s"])]], r["line"], r["direction"],
+                          r["count"], r["mean_kmh"], r["p50_kmh"], r["p85_kmh"], r["max_kmh"]])
+    if not table:
+        return (f"{head}<p class=note>No vehicle with a measured speed crossed a counting "
+                f"line.</p></section>")
+    return (head + f'<div class="charts">{"".join(charts)}</div>'
+            + _table(["bin", "line", "direction", "vehicles", "mean km/h", "p50 km/h",
+                      "p85 km/h", "max km/h"], table, "p85-table")
+            + "<p class=note>The speed of each vehicle as it crosses the line (the road "
+              "distance its filtered ground point covers in the second around the crossing), "
+              "all classes; speeds.csv has them per class. A bin without a crossing in a "
+              "direction has no bar.</p>"
+            + "</section>")
+
+
+def _movements_section(run: Run) -> str:
+    """The origin-destination matrix of the turning movements (summary.json `movements`)."""
+    head = '<section id="movements"><h2>Turning movements</h2>'
+    gates = [g["name"] for g in run.summary.get("gates") or []]
+    moves = run.summary.get("movements") or []
+    if len(gates) < 2:
+        return (f"{head}<p class=note>No turning movements: they need two or more gates "
+                f"([[gates]] in the config).</p></section>")
+    n = {(m["from"], m["to"]): int(m["count"]) for m in moves}
+    top = max(n.values(), default=0) or 1
+    cells = []
+    for a in gates:
+        row = [f"<th>{escape(a)}</th>"]
+        for b in gates:
+            if a == b:
+                row.append('<td class="diag">–</td>')
+                continue
+            v = n.get((a, b), 0)
+            row.append(f'<td style="background:rgba(47,128,237,{0.08 + 0.6 * v / top:.2f})">'
+                       f"{v}</td>")
+        row.append(f"<td><b>{sum(n.get((a, b), 0) for b in gates)}</b></td>")
+        cells.append("<tr>" + "".join(row) + "</tr>")
+    foot = ("<tr><th>total in</th>" + "".join(
+        f"<td><b>{sum(n.get((a, b), 0) for a in gates)}</b></td>" for b in gates)
+        + f"<td><b>{sum(n.values())}</b></td></tr>")
+    table = ('<table class="od-table"><thead><tr><th>from \\ to</th>'
+             + "".join(f"<th>{escape(b)}</th>" for b in gates)
+             + "<th>total out</th></tr></thead><tbody>" + "".join(cells) + foot
+             + "</tbody></table>")
+    by_class = ""
+    if run.movements and run.calibrated:
+        per: dict[tuple[str, str], dict[str, int]] = defaultdict(lambda: defaultdict(int))
+        for r in run.movements:
+            per[(r["from"], r["to"])][r["class"]] += int(r["count"])
+        classes = [c for c in CLASS_COLOURS if any(per[k].get(c) for k in per)]
+        rows = [[a, b] + [per[(a, b)].get(c, 0) for c in classes] + [n.get((a, b), 0)]
+                for a in gates for b in gates if a != b and n.get((a, b), 0)]
+        if rows and classes:
+            by_class = _table(["from", "to"] + classes + ["total"], rows, "movement-table")
+    return (head + table + by_class
+            + "<p class=note>Vehicles per origin gate (rows) and destination gate (columns): "
+              "a vehicle's first and last gate passed (its box centre crossing the gate's "
+              "line or entering its polygon); movements.csv has them per time bin.</p>"
             + "</section>")
 
 
@@ -307,11 +410,12 @@ def _map_section(run: Run) -> str:
     paths, n = _paths(run)
     lines = [(c.get("name", str(k)), c["line"]) for k, c in enumerate(s["counts"])]
     zones = [(z["name"], z["polygon"]) for z in s.get("zones") or [] if z.get("polygon")]
-    svg = track_map(s["width"], s["height"], uri, paths, lines, zones)
+    gates = [(f"gate {g['name']}", g.get("line") or g["polygon"]) for g in s.get("gates") or []]
+    svg = track_map(s["width"], s["height"], uri, paths, lines, zones, gates=gates)
     shown = f"all {n} tracks" if n <= MAX_TRACKS_DRAWN else f"the first {MAX_TRACKS_DRAWN} of {n}"
     note = (f"Box-centre paths of {shown}"
             + (", coloured by class" if run.calibrated else "")
-            + f", counting lines (yellow) and zones (cyan) over {source}.")
+            + f", counting lines (yellow), zones (cyan) and gates (dashed orange) over {source}.")
     lg = legend([(c, CLASS_COLOURS[c]) for c in ("motorcycle", "car", "van", "truck")]) \
         if run.calibrated else ""
     return (f'<section id="map"><h2>Tracks</h2>{lg}<figure class="map">{svg}</figure>'
@@ -360,6 +464,7 @@ figure{margin:0}
 table{border-collapse:collapse;margin-top:10px;font-variant-numeric:tabular-nums}
 th,td{padding:5px 12px;text-align:right;border-bottom:1px solid #e8ebef}
 th:first-child,td:first-child{text-align:left}th{color:#6b7785;font-weight:600;font-size:12px}
+.od-table td{text-align:center;min-width:64px}.od-table td.diag{color:#c0c6cc}
 .legend{display:flex;gap:14px;margin:0 0 8px;font-size:12px;color:#4a5561}
 .legend i{display:inline-block;width:11px;height:11px;border-radius:2px;margin-right:5px;
 vertical-align:-1px}.note{color:#6b7785;font-size:12.5px;margin:8px 0 0}
@@ -370,10 +475,12 @@ footer{color:#8a949e;font-size:12px;text-align:center}
 def render(run: Run) -> str:
     """The report page of a run."""
     s = run.summary
-    body = (_header(run) + _cards(run) + _counts_section(run) + _speed_section(run)
-            + _map_section(run) + _zones_section(run))
+    body = (_header(run) + _cards(run) + _counts_section(run) + _line_speed_section(run)
+            + _speed_section(run) + _movements_section(run) + _map_section(run)
+            + _zones_section(run))
     foot = (f"<footer>vtrack {escape(str(s.get('vtrack_version', '')))} · from summary.json, "
-            f"tracks.csv, counts.csv, vehicles.csv and zone_events.csv in "
+            f"tracks.csv, counts.csv, speeds.csv, movements.csv, vehicles.csv and "
+            f"zone_events.csv in "
             f"{escape(run.dir.name)}/</footer>")
     return ("<!DOCTYPE html><html lang=en><head><meta charset=utf-8>"
             f"<meta name=viewport content='width=device-width,initial-scale=1'>"

@@ -88,9 +88,12 @@ def track_map(width: int, height: int, image_data_uri: str | None,
               paths: Sequence[tuple[str, Sequence[tuple[float, float]]]],
               lines: Sequence[tuple[str, Sequence[float]]],
               zones: Sequence[tuple[str, Sequence[Sequence[float]]]],
-              display_width: int = 960) -> str:
+              display_width: int = 960,
+              gates: Sequence[tuple[str, Sequence[Sequence[float]]]] = ()) -> str:
     """The image (or a blank canvas of its size) with track paths (colour, points), counting
-    lines (label, [x1, y1, x2, y2]) and zones (label, polygon) in image pixels."""
+    lines (label, [x1, y1, x2, y2]), zones (label, polygon) and gates (label, two points of a
+    line or a polygon's vertices; dashed orange, labelled at their middle) in image
+    pixels."""
     s = max(width, height) / 640.0                 # stroke and font scale in image pixels
     dh = round(display_width * height / width)
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{display_width}" height="{dh}" '
@@ -118,13 +121,45 @@ def track_map(width: int, height: int, image_data_uri: str | None,
         out.append(f'<line x1="{x1:.1f}" y1="{y1:.1f}" x2="{x2:.1f}" y2="{y2:.1f}" '
                    f'stroke="#ffe14d" stroke-width="{3 * s:.2f}" stroke-linecap="round"/>')
         out.append(_label(label, x1, y1, "#ffe14d", s))
+    for label, pts in gates:
+        d = " ".join(f"{x:.1f},{y:.1f}" for x, y in pts)
+        tag = "polyline" if len(pts) == 2 else "polygon"
+        out.append(f'<{tag} points="{d}" fill="#ff8a3d" fill-opacity="0.15" stroke="#ff8a3d" '
+                   f'stroke-width="{3 * s:.2f}" stroke-dasharray="{8 * s:.1f} {5 * s:.1f}"/>')
+        seen = _clip(pts, width, height) if len(pts) == 2 else pts
+        mx = sum(x for x, _ in seen) / len(seen)
+        my = sum(y for _, y in seen) / len(seen)
+        out.append(_label(label, mx, min(max(my, 0.0), height - 4 * s), "#ff8a3d", s,
+                          width))
     out.append("</svg>")
     return "".join(out)
 
 
-def _label(text: str, x: float, y: float, colour: str, s: float) -> str:
+def _clip(pts: Sequence[Sequence[float]], width: float, height: float
+          ) -> list[tuple[float, float]]:
+    """The part of segment pts inside the image (Liang-Barsky); the segment if none is."""
+    (x1, y1), (x2, y2) = pts
+    dx, dy = x2 - x1, y2 - y1
+    lo, hi = 0.0, 1.0
+    for p, q in ((-dx, x1), (dx, width - x1), (-dy, y1), (dy, height - y1)):
+        if p == 0:
+            if q < 0:
+                return [(x1, y1), (x2, y2)]
+            continue
+        r = q / p
+        lo, hi = (max(lo, r), hi) if p < 0 else (lo, min(hi, r))
+    if lo > hi:
+        return [(x1, y1), (x2, y2)]
+    return [(x1 + lo * dx, y1 + lo * dy), (x1 + hi * dx, y1 + hi * dy)]
+
+
+def _label(text: str, x: float, y: float, colour: str, s: float,
+           width: float | None = None) -> str:
+    """A text on a dark box at (x, y); with `width`, moved left or right into the image."""
     fs = 13 * s
     w = 0.62 * fs * len(text) + 8 * s
+    if width is not None:
+        x = min(max(x, 0.0), width - w)
     y = max(y, fs + 6 * s)                    # keep a label at the top edge in view
     return (f'<g><rect x="{x:.1f}" y="{y - fs - 4 * s:.1f}" width="{w:.1f}" height="{fs + 6 * s:.1f}" '
             f'rx="{3 * s:.1f}" fill="#111" opacity="0.75"/><text x="{x + 4 * s:.1f}" '
