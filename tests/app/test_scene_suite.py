@@ -28,21 +28,10 @@ SHARED_VIDEOS = Path(__file__).resolve().parents[3] / "shared" / "videos"
 MARGIN = 0.05
 FRAMES = 200
 
-# scene, seed: (MOTA, IDF1) measured on this slice (200 frames, 640x360, default config),
-# on the commit that keeps a passing vehicle's track from a standing one (associator.py) and
-# reports a coasted tail out of the image only on its vehicle's way (reporter.py); before:
-# overhead 0.970 / 0.898, mast 0.039 / 0.255, side -0.474 / 0.254, junction the same. mast
-# and side raised on the commit of the detector's shift tolerance (jitter.py; before it
-# 0.039 / 0.256 and -0.438 / 0.270 -- -0.465 / 0.256 on that commit's parent); junction
-# measured there at -0.046 / 0.397 and kept at its floor. Raised again on the commit that
-# stops reporting coasted slivers at the border (reporter.MIN_INSIDE_SHARE; before it
-# overhead 0.972 / 0.957, mast 0.093 / 0.297, side -0.342 / 0.326, junction -0.046 / 0.397,
-# after it -0.045 / 0.397). On the commit that reads the gap between two pieces with
-# MOG2's labels (associator.py, stop 41) junction measured -0.046 / 0.397, the other three
-# unchanged; the floors stay.
-# The perspective scenes are hard for background subtraction (far vehicles of a few
-# pixels, parked cars, shadows, overlaps; README, Results): these floors catch a
-# regression, they are not targets.
+# scene, seed: (MOTA, IDF1) measured on this slice (200 frames, 640x360, default config).
+# The perspective scenes are hard for background subtraction (far vehicles of a few pixels,
+# parked cars, shadows, overlaps; docs/RESULTS.md): these floors catch a regression, they
+# are not targets.
 MEASURED = {
     ("overhead", 0): (0.973, 0.957),
     ("mast", 0): (0.094, 0.297),

@@ -106,7 +106,7 @@ class TrackerConfig:
     gap_labels: bool = field(default=True, metadata=_h(
         "read the gap between two pieces of a track's blob with MOG2's raw labels (the "
         "detector's changed map, vision/changed.py): body or road (false: by its motion "
-        "alone, as before stop 41)"))
+        "alone)"))
     gap_changed_share: float = field(default=0.5, metadata=_h(
         "a gap between two pieces of which MOG2 labelled at least this share foreground or "
         "shadow is body (one vehicle, not split); under it the gap is road, and a road gap "
