@@ -109,9 +109,11 @@ def _cells_to_z(cells):
     ("srukf", "", {}),
     ("iekf", "", {}),
     ("iekf", "max_iterations = 4\ntolerance = 0.01\n", {"max_iterations": 4, "tolerance": 0.01}),
+    ("iekf", "damped = false\n", {"damped": False}),
     ("iplf", "", {}),
     ("iplf", 'rule = "unscented"\nalpha = 1.0\nkappa = 0\nmax_iterations = 8\n',
      {"rule": "unscented", "alpha": 1.0, "kappa": 0.0, "max_iterations": 8}),
+    ("iplf", "damped = false\n", {"damped": False}),
 ])
 def test_round_trip_bearings(tmp_path, capsys, kind, extra, opts):
     cfg = tmp_path / "config.toml"
