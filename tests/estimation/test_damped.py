@@ -140,8 +140,9 @@ DIVERGED_UNDAMPED = {  # bearings-2 --runs 100 --seed 0: runs where the undamped
 def test_runs_that_diverged_undamped_stay_near_the_ekf(kind):
     """The runs where the undamped iterations failed: plain Gauss-Newton iekf ends with RMSE
     2.7-2.9x the EKF's (ANEES up to 8.6e4; with a halving line search instead, ANEES 1e17 to
-    1e20, the estimate on a sensor), the undamped iplf with 5x (1.27). Damped, the per-run
-    ANEES stays below 3x the EKF's and the RMSE below 2x (measured: iplf 1.64x)."""
+    1e20, the estimate on a sensor), the undamped iplf with 5x (1.27). Damped, every
+    covariance is positive definite, the per-run ANEES stays below 3x the EKF's and the RMSE
+    below 2x (measured: iplf 1.64x)."""
     sc, runs = DIVERGED_UNDAMPED[kind]
     case = _case(sc, runs)
     motion, meas = _models(sc)
@@ -150,6 +151,8 @@ def test_runs_that_diverged_undamped_stay_near_the_ekf(kind):
         run = scn.run_filter(name.split()[0], motion, meas, case.Z, case.x0s, sc.prior_cov,
                              batch=False, dt=sc.dt, **opts)
         out[name] = (nees_series(run, case.truth).mean(axis=1), scn.per_run_rmse(run, case.truth))
+        if name == kind:                        # every posterior covariance positive definite
+            assert np.linalg.eigvalsh(run.P).min() > 0
     anees, rmse = out[kind]
     ekf_anees, ekf_rmse = out["ekf"]
     assert np.all(anees < 3 * ekf_anees), (anees, ekf_anees)
