@@ -18,6 +18,7 @@ import argparse
 
 import numpy as np
 
+from vtrack.estimation.models import Bearings, WienerVelocity
 from vtrack.estimation.montecarlo import monte_carlo, rmse, squared_error
 from vtrack.experiments import _bearings_scenario as scn
 from vtrack.experiments.bearings import PRECISE
@@ -28,8 +29,8 @@ SETTINGS = ((200, 1e-10), (20, 1e-6), (30, 1e-4), (20, 1e-3))   # the first is t
 
 def study(name: str, scenario: scn.Scenario, runs: int) -> None:
     case = scn.simulate(scenario, scn.run_seeds(1, runs), {})
-    motion = scn.CachedWienerVelocity(scenario.q_filter)
-    meas = scn.Bearings(scenario.sensors, scenario.sigma_filter)
+    motion = WienerVelocity(scenario.q_filter)
+    meas = Bearings(scenario.sensors, scenario.sigma_filter)
     for kind in ("iekf", "iplf"):
         ref = None
         for max_it, tol in SETTINGS:

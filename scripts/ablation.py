@@ -4,6 +4,9 @@ suite (scripts/eval_suite.py, vtrack only, without the 1280x720 clip unless --la
 
     .venv/bin/python scripts/ablation.py [--json ablation.json] [--only NAME,...]
 
+--scenes, --seeds, --frames, --no-real and --cache are handed to eval_suite.py (a smaller
+suite, e.g. for a quick check).
+
 Prints one row per configuration: the suite's mean MOTA / IDF1 / HOTA over the synthetic
 clips, the worst MOTA, the real clips' counts (in the hand range, within 1, the sum of
 the errors) and the synthetic clips' counts against their true counts (exact, within 1,
@@ -50,18 +53,30 @@ ABLATIONS = {
 }
 
 
-def run(name: str, toml: str, work: Path, large: bool) -> dict:
+def run(name: str, toml: str, work: Path, large: bool, suite: list[str] = ()) -> dict:
+    """eval_suite.py's vtrack summary with the configuration `toml` (extra arguments
+    `suite`)."""
     cfg = work / f"{name}.toml"
     cfg.write_text(toml)
     out = work / f"{name}.json"
     args = [sys.executable, str(ROOT / "scripts" / "eval_suite.py"), "--no-peers",
-            "--work", str(work / name), "--json", str(out)]
+            "--work", str(work / name), "--json", str(out), *suite]
     if toml:
         args += ["--config", str(cfg)]
     if not large:
         args.append("--no-large")
-    subprocess.run(args, check=False, capture_output=True, text=True)
+    proc = subprocess.run(args, check=False, capture_output=True, text=True)
+    if not out.exists():
+        sys.exit(f"ablation {name}: eval_suite.py failed: {proc.stderr.strip()[-500:]}")
     return json.loads(out.read_text())["summary"]["vtrack"]
+
+
+def _counts(s: dict, prefix: str) -> str:
+    """in range / within 1 / sum of errors of the real (prefix "") or synthetic ("synth_")
+    clips' counts; "-" without such clips."""
+    keys = (f"{prefix}counts_in_range", f"{prefix}counts_within_1",
+            f"{prefix}count_abs_error_sum")
+    return "/".join(str(s[k]) for k in keys) if all(k in s for k in keys) else "-"
 
 
 def main() -> int:
@@ -69,22 +84,26 @@ def main() -> int:
     ap.add_argument("--only", default="", help="ablation names, comma-separated")
     ap.add_argument("--large", action="store_true", help="include the 1280x720 clip")
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
+    for opt in ("--scenes", "--seeds", "--frames", "--cache"):
+        ap.add_argument(opt, help="handed to eval_suite.py")
+    ap.add_argument("--no-real", action="store_true", help="handed to eval_suite.py")
     args = ap.parse_args()
+    suite = [a for opt in ("scenes", "seeds", "frames", "cache")
+             if getattr(args, opt) is not None for a in (f"--{opt}", getattr(args, opt))]
+    suite += ["--no-real"] if args.no_real else []
     names = [n for n in ABLATIONS if not args.only or n in args.only.split(",")
              or n == "default"]
     rows = {}
     with tempfile.TemporaryDirectory(prefix="vtrack-ablation-") as tmp:
         for name in names:
-            rows[name] = run(name, ABLATIONS[name][1], Path(tmp), args.large)
+            rows[name] = run(name, ABLATIONS[name][1], Path(tmp), args.large, suite)
             print(f"... {name} done", file=sys.stderr, flush=True)
     base = rows["default"]
     print(f"{'switched off':<22}{'MOTA':>7}{'(d)':>8}{'IDF1':>7}{'(d)':>8}{'HOTA':>7}"
           f"{'worst':>8}{'real counts':>14}{'synth. counts':>16}")
     for name, s in rows.items():
         d = {k: s[k] - base[k] for k in ("mota_mean", "idf1_mean")}
-        real = f"{s['counts_in_range']}/{s['counts_within_1']}/{s['count_abs_error_sum']}"
-        synth = (f"{s['synth_counts_in_range']}/{s['synth_counts_within_1']}/"
-                 f"{s['synth_count_abs_error_sum']}")
+        real, synth = _counts(s, ""), _counts(s, "synth_")
         print(f"{name:<22}{s['mota_mean']:7.3f}{d['mota_mean']:+8.3f}{s['idf1_mean']:7.3f}"
               f"{d['idf1_mean']:+8.3f}{s['hota_mean']:7.3f}{s['mota_worst']:8.3f}"
               f"{real:>14}{synth:>16}")

@@ -4,7 +4,8 @@
         --every 1000 --count-line 0,216,640,216
 
 The looped clip is written once as MJPG to a temporary folder (about 50 MB per 1000 frames
-at 640x360). Prints `frame N rss X MB` lines, then the summary's frame and track counts.
+at 640x360). Prints `frame N rss X MB` lines, then the summary's frame and track counts and each counting
+line's tallies.
 """
 
 from __future__ import annotations
@@ -48,10 +49,12 @@ def main() -> None:
     ap.add_argument("video")
     ap.add_argument("--repeat", type=int, default=25)
     ap.add_argument("--every", type=int, default=1000, help="print RSS every N frames")
-    ap.add_argument("--count-line", action="append", default=[])
+    ap.add_argument("--count-line", action="append", default=[],
+                    help="X1,Y1,X2,Y2 as for vtrack track --count-line (repeatable)")
     args = ap.parse_args()
 
     import vtrack.io.video as video
+    from vtrack.analytics.regions import parse_cli_line
     from vtrack.app import config
     from vtrack.app.track import TrackOptions, track_video
 
@@ -69,9 +72,11 @@ def main() -> None:
         n = _loop_clip(Path(args.video), clip, args.repeat)
         print(f"{n} frames looped from {args.video}", flush=True)
         cfg = config.load(None)
-        cfg.count_lines = [[float(v) for v in line.split(",")] for line in args.count_line]
+        cfg.count_lines = [parse_cli_line(line) for line in args.count_line]
         summary = track_video(clip, Path(tmp) / "out", cfg, TrackOptions())
     print(f"end rss {_rss_mb():.1f} MB; {summary['frames']} frames, {summary['tracks']} tracks")
+    for i, c in enumerate(summary["counts"]):
+        print(f"line {i}: {c['forward']} forward, {c['backward']} backward")
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 junction), tracked with the default configuration and a counting line at 0.6 H, tiled 2 x 2.
 
     .venv/bin/python scripts/readme_picture.py [--out docs/img/tracking.jpg] [--frame 160]
+        [--frames 200]
 
 Each tile is `vtrack track --save-frames`' own annotated frame (boxes, ids, trails, the
 counting line and its tallies), with the scene's name and the frame's ground-truth and track
@@ -23,12 +24,12 @@ from vtrack.app.track import TrackOptions, track_video
 from vtrack.sim.clip import render_default
 
 SCENES = ("overhead", "mast", "side", "junction")
-W, H, FPS, FRAMES = 640, 360, 25.0, 200
+W, H, FPS = 640, 360, 25.0
 
 
-def _tile(scene: str, frame: int, work: Path) -> np.ndarray:
+def _tile(scene: str, frame: int, work: Path, frames: int = 200) -> np.ndarray:
     clip, run = work / scene / "clip", work / scene / "run"
-    render_default(clip, scene, frames=FRAMES, width=W, height=H, fps=FPS, seed=0)
+    render_default(clip, scene, frames=frames, width=W, height=H, fps=FPS, seed=0)
     cfg = AppConfig()
     cfg.count_lines = [parse_count_line("line", [0, 0.6 * H, W, 0.6 * H])]
     track_video(clip / "video.avi", run, cfg, TrackOptions(save_frames=True))
@@ -47,9 +48,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="docs/img/tracking.jpg")
     ap.add_argument("--frame", type=int, default=160)
+    ap.add_argument("--frames", type=int, default=200, help="length of each rendered clip")
     args = ap.parse_args()
+    if not 1 <= args.frame <= args.frames:
+        ap.error("--frame must lie in 1..--frames")
     with tempfile.TemporaryDirectory() as tmp:
-        tiles = [_tile(scene, args.frame, Path(tmp)) for scene in SCENES]
+        tiles = [_tile(scene, args.frame, Path(tmp), args.frames) for scene in SCENES]
     picture = np.vstack([np.hstack(tiles[:2]), np.hstack(tiles[2:])])
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(args.out, picture, [cv2.IMWRITE_JPEG_QUALITY, 85])

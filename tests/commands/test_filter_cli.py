@@ -109,9 +109,11 @@ def _cells_to_z(cells):
     ("srukf", "", {}),
     ("iekf", "", {}),
     ("iekf", "max_iterations = 4\ntolerance = 0.01\n", {"max_iterations": 4, "tolerance": 0.01}),
+    ("iekf", "damped = false\n", {"damped": False}),
     ("iplf", "", {}),
     ("iplf", 'rule = "unscented"\nalpha = 1.0\nkappa = 0\nmax_iterations = 8\n',
      {"rule": "unscented", "alpha": 1.0, "kappa": 0.0, "max_iterations": 8}),
+    ("iplf", "damped = false\n", {"damped": False}),
 ])
 def test_round_trip_bearings(tmp_path, capsys, kind, extra, opts):
     cfg = tmp_path / "config.toml"
@@ -477,14 +479,54 @@ def test_rerun_calls_the_logger(tmp_path, monkeypatch):
     assert path == str(rrd)
 
 
-def test_rerun_recording_is_written(tmp_path):
+def _rrd_rows(path, entity: str, component: str) -> list[tuple[int | None, object]]:
+    """(time in ns or None for static rows, value) of one component of one entity of an .rrd
+    file, read back with rerun's reader, over all chunks, in time order."""
+    import pyarrow as pa
+    from rerun.chunk import RrdReader
+
+    out = []
+    for ch in RrdReader(str(path)).stream():
+        if ch.entity_path != entity:
+            continue
+        rb = ch.to_record_batch()
+        if component not in rb.schema.names:
+            continue
+        times = (rb.column("time").cast(pa.int64()).to_pylist() if "time" in rb.schema.names
+                 else [None] * rb.num_rows)
+        out.extend(zip(times, rb.column(component).to_pylist()))
+    return sorted(out, key=lambda tv: -1 if tv[0] is None else tv[0])
+
+
+def test_rerun_recording_holds_the_estimates(tmp_path):
+    """The .rrd read back: each state component's series equals ESTIMATES.csv's column
+    (times and values), the logged path is the estimated positions, every point of each
+    time's 2-sigma ellipse lies at Mahalanobis distance 2 under the CSV's position
+    covariance, and the sensors are the config's."""
     pytest.importorskip("rerun")
     cfg, meas, out = tmp_path / "c.toml", tmp_path / "m.csv", tmp_path / "e.csv"
     cfg.write_text(_toml())
-    meas.write_text(GOOD_CSV)
+    t, cells = _bearings_rows()
+    _write_csv(meas, ["t", "z0", "z1"], t, cells)
     rrd = tmp_path / "run.rrd"
     assert main(["filter", str(cfg), str(meas), "--out", str(out), "--rerun", str(rrd)]) == 0
-    assert out.exists() and rrd.stat().st_size > 0
+    _, est = _read_estimates(out)
+    times_ns = np.round(est[:, 0] * 1e9).astype(np.int64)    # rerun's duration: ns
+    for k in range(4):
+        series = _rrd_rows(rrd, f"/state/x{k}", "Scalars:scalars")
+        assert np.abs(np.array([tv[0] for tv in series]) - times_ns).max() <= 1  # ns rounding
+        np.testing.assert_array_equal([v[0] for _, v in series], est[:, 1 + k])
+    (_, strips), = _rrd_rows(rrd, "/plane/estimate/path", "LineStrips2D:strips")
+    np.testing.assert_allclose(np.array(strips[0]), est[:, 1:3], rtol=1e-6, atol=1e-7)
+    ellipses = _rrd_rows(rrd, "/plane/estimate/ellipse", "LineStrips2D:strips")
+    assert np.abs(np.array([tv[0] for tv in ellipses]) - times_ns).max() <= 1
+    for row, (_, strip) in zip(est, ellipses):
+        pts = np.array(strip[0], dtype=float) - row[1:3]
+        P = row[5:].reshape(4, 4)[:2, :2]
+        d2 = np.einsum("ni,ij,nj->n", pts, np.linalg.inv(P), pts)
+        np.testing.assert_allclose(d2, 4.0, rtol=1e-4)
+    (_, sensors), = _rrd_rows(rrd, "/plane/sensors", "Points2D:positions")
+    np.testing.assert_array_equal(sensors, [[1.0, -2.0], [1.0, 2.0]])
 
 
 def _missing_extra(*args):

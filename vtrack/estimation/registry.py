@@ -53,7 +53,7 @@ def make_filter(kind: str, motion: MotionModel, measurement: MeasurementModel,
 
 
 _UT = ("alpha", "beta", "kappa")
-_ITERATION = ("max_iterations", "tolerance")
+_ITERATION = ("max_iterations", "tolerance", "damped")
 
 
 @register("kf")

@@ -11,10 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.estimation.filters import (
+from vtrack.estimation.filters import GaussianFilter
+from vtrack.estimation.iterated import (
+    DAMPED,
     MAX_ITERATIONS,
     TOLERANCE,
-    GaussianFilter,
     Linearisation,
     iterated_update,
     iteration_options,
@@ -109,24 +110,38 @@ def statistical_linear_regression(rule: SigmaPointRule, motion: MotionModel,
 class IteratedPosteriorLinearisationFilter(SigmaPointKalmanFilter):
     """Iterated posterior linearisation filter, IPLF (Garcia-Fernandez, Svensson, Morelande
     & Sarkka 2015, "Posterior linearization filter: principles and implementation using
-    sigma points", IEEE Trans. Signal Processing 63(20)).
+    sigma points", IEEE Trans. Signal Processing 63(20)), damped.
 
     Prediction: the sigma-point prediction (the SLR of f about the posterior). Update:
-    filters.iterated_update with the statistical linear regression of h about the CURRENT
+    iterated.iterated_update with the statistical linear regression of h about the CURRENT
     POSTERIOR N(m_i, P_i) (statistical_linear_regression: A_i, ybar_i, Omega_i), the prior
     updated with z = A_i x + b_i + e, e ~ N(0, R + Omega_i). The first iteration, about the
     prior, is the UKF/CKF update; later ones linearise where the posterior mass is.
-    `iterations` holds the count of the last update.
+
+    Damped (the default; damped posterior linearisation, after Raitoharju, Svensson,
+    Garcia-Fernandez & Piche 2018, IEEE Signal Processing Letters 25(4)): a step of the mean
+    is kept only if it lowers
+
+        V(x) = (x - x-)' P-^-1 (x - x-) + r' R~^-1 r + log det(A P- A' + R~),
+        r = wrap(z - ybar),  R~ = R + Omega,  (A, ybar, Omega) the SLR of h about N(x, P_i)
+
+    (iterated.merit: -2 log of the Laplace estimate of the posterior mass at x under the
+    posterior-linearised likelihood), and is otherwise retried with Levenberg-Marquardt
+    damping (iterated.damped_step). The covariance is the
+    Joseph-form update of the last linearisation. `iterations` holds the count of the last
+    update.
 
     Options: rule ("cubature", the default, or "unscented" with alpha, beta, kappa),
-    max_iterations (default 30), tolerance (default 1e-4 posterior standard deviations).
+    max_iterations (default 30), tolerance (default 1e-4 posterior standard deviations),
+    damped (default true; false: the undamped IPLF).
     """
 
     def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
                  P0: np.ndarray, rule: SigmaPointRule, max_iterations: int = MAX_ITERATIONS,
-                 tolerance: float = TOLERANCE) -> None:
+                 tolerance: float = TOLERANCE, damped: bool = DAMPED) -> None:
         super().__init__(motion, measurement, x0, P0, rule, "iplf")
-        self.max_iterations, self.tolerance = iteration_options(max_iterations, tolerance)
+        self.max_iterations, self.tolerance, self.damped = iteration_options(
+            max_iterations, tolerance, damped)
         self.iterations = 0
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
@@ -135,7 +150,7 @@ class IteratedPosteriorLinearisationFilter(SigmaPointKalmanFilter):
 
         self.x, self.P, info, self.iterations = iterated_update(
             self.motion, meas, self.x, self.P, z, meas.R, linearise, self.max_iterations,
-            self.tolerance)
+            self.tolerance, self.damped)
         return info
 
 

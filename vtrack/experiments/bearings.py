@@ -83,13 +83,15 @@ def _experiment(name: str, scenario: scn.Scenario, headline: str, runs: int, see
         "run_seeds": seeds,
         "filters": {"ekf": "core EKF (batched over runs: same kf_predict/kf_update)",
                     "iekf": "core iterated EKF (Gauss-Newton update relinearised at its own "
-                            "result, steps halved while they raise the MAP cost; at most 30 "
-                            "iterations, step tolerance 1e-4 posterior standard deviations)",
+                            "result, damped: a step is kept only if it lowers the MAP cost "
+                            "plus log det of the innovation covariance, else retried with "
+                            "Levenberg-Marquardt damping; at most 30 iterations, step "
+                            "tolerance 1e-4 posterior standard deviations)",
                     "ukf": "core UKF, alpha=1, beta=0, kappa=3-n (toolbox weights)",
                     "ckf": "core CKF (third-degree cubature)",
                     "iplf": "core IPLF (Garcia-Fernandez et al. 2015): CKF prediction, update "
                             "iterated with the cubature statistical linear regression about "
-                            "the current posterior; same iteration limits as iekf"},
+                            "the current posterior; damped and limited as iekf"},
         "metrics": METRICS,
         "pcrlb_note": PCRLB_NOTE,
         "nees_band": list(chi2_band(4, runs)),
