@@ -33,7 +33,8 @@ from vtrack.io.video import VideoReader
 
 
 # The stages `vtrack track` runs in its main thread; the rest run in the segment worker.
-MAIN_THREAD = ("blobs", "split merged blobs", "tracker predict", "tracker update")
+MAIN_THREAD = ("blobs", "split merged blobs", "standing boxes", "tracker predict",
+               "tracker update")
 BACKGROUND = "background estimate (2nd read)"  # before the first frame
 TARGET_RATIO = 0.45  # issue 12's target for the ratio tracked / decode-only fps
 
@@ -126,9 +127,12 @@ def stage_costs(video: Path, cfg: config.AppConfig, frames: int) -> tuple[StageT
         det.shifted = times.wrap("shift tolerance", det.shifted)
     if det.motion is not None:
         det.motion = times.wrap("motion map", det.motion)
-    for name, stage in (("shadows", "textured_shadow"), ("blobs", "find_blobs")):
+    for name, stage in (("shadows", "textured_shadow"), ("blobs", "find_blobs"),
+                        ("standing hold (labels)", "held_foreground")):
         setattr(detect_module, stage, times.wrap(name, getattr(detect_module, stage)))
     det._split = times.wrap("split merged blobs", det._split)
+    if det.standing is not None:
+        det.standing = times.wrap("standing boxes", det.standing)
     tracker = Tracker(cfg.tracker, info.width, info.height, info.fps)
     predict = times.wrap("tracker predict", tracker.predict)
     update = times.wrap("tracker update", tracker.update)

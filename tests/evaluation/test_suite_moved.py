@@ -8,7 +8,7 @@ import pytest
 
 def _result(suite, clip: str, share: float, vtrack: float, sort: float):
     r = suite.Result(clip, "synthetic")
-    r.detector = {"recall": 0.5, "moved_share": share}
+    r.detector = {"recall": 0.5, "moved_share": share, "recall_moved": share - 0.1}
     for name, mota in (("vtrack", vtrack), ("sort", sort)):
         r.scores[name] = {m: 0.0 for m in suite.METRICS} | {
             "mota": mota, "moved": {"mota": mota + 0.1, "idf1": 0.6, "hota": 0.5}}
@@ -23,9 +23,26 @@ def test_moved_scores_are_averaged_and_printed(load_script, capsys) -> None:
     assert summary["vtrack"]["moved"]["mota_worst"] == pytest.approx(0.1)
     assert summary["sort"]["moved"]["mota_mean"] == pytest.approx(0.2)
     assert summary["detector"]["moved_share_mean"] == pytest.approx(0.6)
+    assert summary["detector"]["recall_moved_mean"] == pytest.approx(0.5)
+    assert summary["detector"]["recall_moved_worst"] == pytest.approx(0.3)
     suite.print_moved(results, ["vtrack", "sort"], summary)
     lines = capsys.readouterr().out.splitlines()
     side = next(line for line in lines if line.startswith("side-0"))
-    assert side.split()[1:] == ["0.400", "0.100", "/", "0.600", "/", "0.500",
+    assert side.split()[1:] == ["0.400", "0.300", "0.100", "/", "0.600", "/", "0.500",
                                 "0.000", "/", "0.600", "/", "0.500"]
-    assert next(line for line in lines if line.startswith("mean")).split()[1] == "0.600"
+    assert next(line for line in lines if line.startswith("mean")).split()[1:3] == [
+        "0.600", "0.500"]
+
+
+def test_moved_visible_ignores_unmoved_and_mostly_hidden_rows() -> None:
+    """oracle.moved_visible: a vehicle's rows before it moves half a box scale, and rows
+    under 70 % visible, become ignore regions (conf 0); the rest keep their conf."""
+    import numpy as np
+
+    from vtrack.evaluation.oracle import moved_visible
+
+    rows = [[n, 1, 10.0 + 4 * max(n - 3, 0), 10, 20, 20, 1, -1, -1, -1,
+             0.5 if n == 8 else 1.0] for n in range(1, 10)]
+    out = moved_visible(np.array(rows))
+    # centre moves 4 px a frame from frame 4: half of sqrt(20 * 20) = 10 px by frame 6
+    assert out[:, 6].tolist() == [0, 0, 0, 0, 0, 1, 1, 0, 1]

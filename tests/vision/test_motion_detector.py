@@ -184,10 +184,22 @@ def test_gain_compensation_absorbs_a_global_brightness_step():
             assert np.count_nonzero(det.foreground) < 0.02 * det.foreground.size, n
 
 
+def test_a_vehicle_filling_a_third_of_the_frame_is_detected_without_the_area_cap():
+    """A truck near the camera: 200 x 130 px of a 320 x 240 frame (34 %). The default cap
+    of a quarter of the frame drops it; without the cap (1.0) it is one detection."""
+    scene = Scene(320, 240, [(-150, 60, 200, 130, 4, 0, (200, 200, 200))], seed=9)
+    for cap, found in ((DetectorConfig().max_area_fraction, 0), (1.0, 1)):
+        det = MotionDetector(DetectorConfig(warmup_frames=10, max_area_fraction=cap), 320, 240)
+        dets = _run(det, scene, START + 45)
+        assert [len(d) for d in dets[START + 40:]] == [found] * 5, cap
+    assert dets[-1].boxes[0, 2] * dets[-1].boxes[0, 3] > 0.25 * 320 * 240
+
+
 def test_config_validation():
     DetectorConfig().validate()
     for bad in ({"history": 0}, {"min_fill": 1.5}, {"shadow_threshold": 0},
-                {"max_area_fraction": 0.0}, {"detect_width": 4}):
+                {"max_area_fraction": 0.0}, {"detect_width": 4}, {"hold_speed": 0.0},
+                {"min_vehicle_share": -1.0}, {"min_pixels_far": 0}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             DetectorConfig(**bad).validate()
 

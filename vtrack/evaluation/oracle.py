@@ -68,6 +68,16 @@ def unmoved_ignored(gt: np.ndarray, motion: float = 0.5) -> np.ndarray:
     return out
 
 
+def moved_visible(gt: np.ndarray, min_visible: float = 0.7) -> np.ndarray:
+    """`unmoved_ignored(gt)` with the rows under `min_visible` visible (the 11th column)
+    also ignore regions: the boxes a motion detector's blob can match one to one (a whole-
+    vehicle box mostly hidden behind another cannot match the blob of its visible part)."""
+    out = unmoved_ignored(gt)
+    if gt.shape[1] >= 11:
+        out[gt[:, 10] < min_visible, 6] = 0
+    return out
+
+
 def moved_share(gt: np.ndarray, marked: np.ndarray) -> float:
     """The share of the scored ground-truth rows (mot.ignore_mask) that `marked`, the same
     rows marked by `unmoved_ignored`, still scores: those whose vehicle has moved. The

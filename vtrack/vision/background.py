@@ -66,9 +66,14 @@ class Mog2Background:
         self._mog.apply(background, learningRate=1.0)
         self.primed = True
 
-    def apply(self, small: np.ndarray) -> np.ndarray:
-        """Learn `small` and return MOG2's mask (255 foreground, 127 shadow, 0 background)."""
+    def apply(self, small: np.ndarray, held: np.ndarray | None = None) -> np.ndarray:
+        """Learn `small` and return MOG2's mask (255 foreground, 127 shadow, 0 background).
+        Inside `held` (a 0/255 mask: standing vehicles, hold.py) the model learns its own
+        background image instead, and the mask there is left to the caller."""
         self.frames += 1
+        if held is not None:
+            small = small.copy()
+            cv2.copyTo(self.image(), held, small)
         return self._mog.apply(small, learningRate=self.learning_rate())
 
 

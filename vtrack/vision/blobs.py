@@ -4,6 +4,7 @@ look like vehicles."""
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -79,10 +80,15 @@ class MotionMap:
 
 def find_blobs(fg: np.ndarray, moving: np.ndarray | None, sx: float, sy: float,
                min_pixels: int, min_area: float, max_area: float, min_fill: float,
-               min_motion: float) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+               min_motion: float, still: np.ndarray | None = None,
+               floor: Callable[[np.ndarray], np.ndarray] | None = None
+               ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """Outer contours of the mask kept when their size and fill ratio (area / box area:
     foliage blobs are ragged) look like a vehicle and, with a motion map, something inside
-    their box moved (ghosts of vehicles present at the start are static). Returns boxes
+    their box moved (ghosts of vehicles present at the start are static) or it holds the
+    centre of one of the `still` boxes (mask pixels: standing vehicles, hold.py). `floor`,
+    when given, maps blob centres (N, 2, mask pixels) to the smallest pixel count there
+    (sizes.SizeFloor) instead of `min_pixels`. Returns boxes
     (K, 4) and areas (K,) mapped to full resolution by the scale factors (sx, sy), and the
     kept contours (mask pixels).
 
@@ -98,12 +104,19 @@ def find_blobs(fg: np.ndarray, moving: np.ndarray | None, sx: float, sy: float,
     x, y = stats[:, 0] * sx, stats[:, 1] * sy
     w, h = stats[:, 2] * sx, stats[:, 3] * sy
     area = stats[:, 4] * sx * sy
-    keep = ((stats[:, 4] >= min_pixels) & (area >= min_area) & (area <= max_area)
+    least = (min_pixels if floor is None
+             else floor(stats[:, :2] + stats[:, 2:4] / 2))
+    keep = ((stats[:, 4] >= least) & (area >= min_area) & (area <= max_area)
             & (area >= min_fill * w * h))
     if moving is not None:
         x0, y0, bw, bh = stats[:, :4].astype(np.int64).T
         x1, y1 = x0 + bw, y0 + bh
         changed = moving[y1, x1] - moving[y0, x1] - moving[y1, x0] + moving[y0, x0]
-        keep &= changed >= min_motion * bw * bh
+        moved = changed >= min_motion * bw * bh
+        if still is not None and len(still):
+            c = still[:, :2] + still[:, 2:] / 2
+            moved |= ((c[None, :, 0] >= x0[:, None]) & (c[None, :, 0] < x1[:, None])
+                      & (c[None, :, 1] >= y0[:, None]) & (c[None, :, 1] < y1[:, None])).any(1)
+        keep &= moved
     kept = [c for c, k in zip(contours, keep, strict=True) if k]
     return np.stack([x, y, w, h], axis=1)[keep], area[keep], kept

@@ -1,6 +1,8 @@
 """Moving-vehicle detector: one interface (`MotionDetector.detect`) over named stages:
-prepare (prepare.py) -> stabilise (stabilise.py) -> background (background.py) -> shadows
-(shadows.py) -> shift tolerance (jitter.py) -> blobs and split (blobs.py, split.py).
+prepare (prepare.py) -> stabilise (stabilise.py) -> background (background.py; optionally
+not learning under standing vehicles, hold.py) -> shadows (shadows.py) -> shift tolerance
+(jitter.py) -> blobs (blobs.py; optionally a noise floor in vehicle units, sizes.py) and
+split (split.py). docs/DETECTOR.md describes each stage and its switch.
 `detect` is `locate(segment(image))`: `segment` runs the image stages, which need no track
 state, and returns what they found (`Foreground`); `locate` runs the blob stages on it,
 which divide merged blobs among the tracker's predictions.
@@ -42,18 +44,23 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 
 from vtrack.boxes import centre
 from vtrack.vision.background import Mog2Background, estimate_background
 from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi, polygon_mask
 from vtrack.vision.changed import ChangedMap
+from vtrack.vision.hold import StandingBoxes, held_foreground, hold_mask
 from vtrack.vision.jitter import ShiftTolerance
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
+from vtrack.vision.sizes import SizeFloor
 from vtrack.vision.shadows import drop_shadows, textured_shadow
 from vtrack.vision.split import holders, split_blob
 from vtrack.vision.stabilise import (IDENTITY, Stabiliser, border_edges_kept, compose, invert,
                                      onto_mask, rescale, transform_boxes)
+
+HOLD_LAG = 2   # frames between the predicted boxes a frame holds and the frame
 
 __all__ = ["DetectorConfig", "Detections", "Foreground", "MotionDetector", "downscale_factor"]
 
@@ -98,7 +105,9 @@ class DetectorConfig:
                               "floor, the same for any video size")
     min_area: float = _f(0.0, "smallest blob area in the video's own (full-resolution) "
                               "pixels^2, on top of min_pixels")
-    max_area_fraction: float = _f(0.25, "largest blob area as a fraction of the frame")
+    max_area_fraction: float = _f(0.25, "largest blob area as a fraction of the frame (1: no "
+                                        "cap; a truck near the camera can fill a quarter of "
+                                        "it: docs/DETECTOR.md, measured)")
     min_fill: float = _f(0.4, "smallest blob area / box area (ragged foliage is sparse)")
     min_motion: float = _f(0.02, "smallest share of a blob's box that changed over the last "
                                  "2 frames; static blobs (ghosts of vehicles present at the "
@@ -138,6 +147,20 @@ class DetectorConfig:
                                        "all of them")
     stabilise_still_px: float = _f(0.5, "a camera whose image corners move less than this "
                                          "(detection pixels) over the first 2 s is still")
+    hold_standing: bool = _f(False, "selective update: MOG2 does not learn the pixels under "
+                                    "the predicted boxes of tracked vehicles that stand "
+                                    "(hold.py), so a queued vehicle stays foreground and "
+                                    "leaves no ghost when it drives off")
+    hold_speed: float = _f(0.5, "a predicted box moving slower than this (box scales/s) "
+                                "stands")
+    hold_min_seconds: float = _f(0.2, "a box is held once it has stood this long")
+    hold_max_seconds: float = _f(60.0, "and at most this long (then MOG2 learns it)")
+    min_vehicle_share: float = _f(0.0, "noise floor in vehicle units: where the tracked "
+                                       "vehicles' boxes say vehicles look small (far away), "
+                                       "a blob of this share of a vehicle's expected area "
+                                       "there is kept even under min_pixels (sizes.py); 0: "
+                                       "min_pixels everywhere")
+    min_pixels_far: int = _f(24, "the floor never falls below this (detection pixels)")
 
     def validate(self) -> None:
         """Raise ValueError naming the first out-of-range field."""
@@ -166,6 +189,11 @@ class DetectorConfig:
             "init_background_tolerance": 0 <= self.init_background_tolerance <= 255,
             "init_background_support": 0 <= self.init_background_support <= 1,
             "stabilise_still_px": self.stabilise_still_px >= 0,
+            "hold_speed": self.hold_speed > 0,
+            "min_vehicle_share": self.min_vehicle_share >= 0,
+            "min_pixels_far": self.min_pixels_far >= 1,
+            "hold_min_seconds": self.hold_min_seconds >= 0,
+            "hold_max_seconds": self.hold_max_seconds >= self.hold_min_seconds,
         }
         for name, ok in checks.items():
             if not ok:
@@ -204,6 +232,7 @@ class Foreground:
     motion: np.ndarray          # (2, 3) camera motion: the previous frame -> this one
     camera: np.ndarray          # (2, 3) the stabiliser's reference -> this frame
     learning: bool              # still in the warm-up: no detections yet
+    held: np.ndarray | None = None   # (K, 4) standing boxes MOG2 did not learn (mask px)
 
 
 class MotionDetector:
@@ -237,6 +266,17 @@ class MotionDetector:
                                       hold_frames=round(fps) if cfg.stabilise_robust else 0)
                            if cfg.stabilise else None)
         self._camera = IDENTITY.copy()   # reference -> current frame, full resolution
+        self.standing = (StandingBoxes(cfg.hold_speed, fps, round(cfg.hold_min_seconds * fps),
+                                       round(cfg.hold_max_seconds * fps))
+                         if cfg.hold_standing else None)
+        # boxes to hold by the number of the located frame they came from: frame k holds
+        # those of frame k - HOLD_LAG, which `locate` has handed over even when `segment`
+        # runs a frame ahead in another thread (app/track.py), so results do not depend on
+        # the threads' timing
+        self._held: dict[int, np.ndarray] = {}
+        self._located = 0
+        self.floor = (SizeFloor(*size, cfg.min_vehicle_share, cfg.min_pixels_far,
+                                cfg.min_pixels) if cfg.min_vehicle_share > 0 else None)
         self.foreground: np.ndarray | None = None
 
     @property
@@ -285,7 +325,13 @@ class MotionDetector:
             self._camera = camera
         if self.gain is not None:
             small = self.gain(small)
-        raw = self.background.apply(small)
+        held_boxes = self._held.pop(self.frames + 1 - HOLD_LAG, None)
+        held = hold_mask(held_boxes, small.shape[:2]) if held_boxes is not None else None
+        raw = self.background.apply(small, held)
+        if held is not None:
+            inside = held_foreground(small, self.background.image(), held, cfg.var_threshold,
+                                     cfg.var_min, cfg.shadow_ratio, cfg.detect_shadows)
+            raw = cv2.bitwise_or(cv2.bitwise_and(raw, cv2.bitwise_not(held)), inside)
         if cfg.detect_shadows and cfg.shadow_texture > 0:
             fg = textured_shadow(raw, small, self.background.image(), cfg.shadow_texture)
         else:
@@ -297,7 +343,8 @@ class MotionDetector:
         if self.motion is not None:
             moving = self.motion(small if small is not image else image.copy())
         learning = self.frames <= cfg.warmup_frames and not self.background.primed
-        return Foreground(self.foreground, raw, moving, motion, self._camera, learning)
+        return Foreground(self.foreground, raw, moving, motion, self._camera, learning,
+                          held_boxes)
 
     def locate(self, fg: Foreground, predicted: np.ndarray | None = None) -> Detections:
         """The blobs of a segmented frame, in its pixels.
@@ -307,12 +354,20 @@ class MotionDetector:
         blob holding several of them is divided among them (split.py)."""
         cfg = self.cfg
         predicted = np.zeros((0, 4)) if predicted is None else predicted
+        self._located += 1
+        if self.standing is not None or self.floor is not None:
+            on_mask = onto_mask(predicted, fg.camera, self._sx, self._sy)
+            if self.standing is not None:
+                self._held[self._located] = self.standing(on_mask)
+            if self.floor is not None:
+                self.floor.add(on_mask)
         if fg.learning:
             return Detections.empty(fg.motion)
         boxes, areas, contours = find_blobs(fg.mask, fg.moving, self._sx, self._sy,
                                             cfg.min_pixels, cfg.min_area,
                                             cfg.max_area_fraction * self.width * self.height,
-                                            cfg.min_fill, cfg.min_motion)
+                                            cfg.min_fill, cfg.min_motion, fg.held,
+                                            self.floor)
         if cfg.split_merged and len(boxes) and len(predicted) >= 2:
             boxes, areas = self._split(boxes, areas, contours, predicted, fg.camera)
         ref_boxes, boxes = boxes, transform_boxes(fg.camera, boxes)  # -> this frame's pixels
