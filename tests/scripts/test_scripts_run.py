@@ -83,8 +83,10 @@ def test_bench_tracker():
     assert sorted(rows) == [10, 100, 1000]
     for n, ours, tracker, ratio, filters, ratio_f in rows.values():
         assert min(ours, tracker, filters) > 0
-        assert ratio == pytest.approx(tracker / ours, abs=0.051)
-        assert ratio_f == pytest.approx(filters / ours, abs=0.051)
+        # the ratio is printed to 0.1 from unrounded times; the times to 0.01 ms
+        for base, r in ((tracker, ratio), (filters, ratio_f)):
+            slack = 0.05 + 0.005 * (1 / ours + base / ours**2) + 1e-9
+            assert r == pytest.approx(base / ours, abs=slack)
 
 
 @pytest.mark.slow

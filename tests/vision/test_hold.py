@@ -62,7 +62,7 @@ def test_a_standing_vehicle_stays_detected_and_leaves_no_ghost():
         hits = []
         for n in range(300):
             box = np.array([[x_at(n), 100.0, 40, 24]])
-            d = det.detect(frame(n), lambda motion, box=box: box)
+            d = det.detect(frame(n), box)
             near = [b for b in d.boxes if abs(b[0] - x_at(n)) < 4 and abs(b[1] - 100) < 4]
             ghost = [b for b in d.boxes if n > 275 and abs(b[0] - x_at(259)) < 8]
             hits.append((len(near) == 1, len(ghost)))
