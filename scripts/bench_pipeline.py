@@ -15,50 +15,32 @@ however the work is spread over threads and processes.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
-import resource
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 from vtrack.app import config, profile
 from vtrack.app.track import TrackOptions, track_video
 from vtrack.io.video import VideoReader
 
 
+WORK_MS = 12.0   # a consumer's time a frame in decoder_wait: about a tracked frame's
 TARGET_RATIO = 0.45  # issue 12's target for the ratio tracked / decode-only fps
 
 
-class Timing(NamedTuple):
-    """Wall and CPU seconds of a run: CPU in this process and in its finished children."""
-
-    wall: float
-    cpu_self: float
-    cpu_children: float
-
-    def __sub__(self, other: Timing) -> Timing:
-        return Timing(*(a - b for a, b in zip(self, other, strict=True)))
-
-
-def _now() -> Timing:
-    """The wall clock and the CPU used so far by this process and its finished children."""
-    own, children = (resource.getrusage(who) for who in (resource.RUSAGE_SELF,
-                                                         resource.RUSAGE_CHILDREN))
-    return Timing(time.perf_counter(), own.ru_utime + own.ru_stime,
-                  children.ru_utime + children.ru_stime)
-
-
-def _timed(run: Callable[[], Any]) -> Timing:
+def _timed(run: Callable[[], Any]) -> profile.Timing:
     """Time run(); the children are the decoder processes it started and closed."""
-    before = _now()
+    before = profile.now()
     run()
-    return _now() - before
+    return profile.now() - before
 
 
-def _decode(video: Path, frames: int) -> Timing:
+def _decode(video: Path, frames: int) -> profile.Timing:
     def read() -> None:
         with VideoReader(video, max_frames=frames) as reader:
             for _ in reader:
@@ -66,7 +48,27 @@ def _decode(video: Path, frames: int) -> Timing:
     return _timed(read)
 
 
-def _track(video: Path, out: Path, cfg: config.AppConfig, frames: int) -> Timing:
+def decoder_wait(video: Path, frames: int, work_ms: float, busy: bool) -> float:
+    """Seconds a frame spent waiting for the reader's next frame by a consumer that spends
+    `work_ms` a frame busy on a core (`busy`) or asleep: the transfer alone when the
+    decoder child has a free core, more when it has to compete for one."""
+    wait = 0.0
+    with VideoReader(video, max_frames=frames) as reader:
+        it = iter(reader)
+        for n in itertools.count():
+            t0 = time.perf_counter()
+            frame = next(it, None)
+            wait += time.perf_counter() - t0
+            if frame is None:
+                return wait / max(n, 1)
+            end = time.perf_counter() + work_ms / 1000.0
+            if not busy:
+                time.sleep(work_ms / 1000.0)
+            while time.perf_counter() < end:
+                pass
+
+
+def _track(video: Path, out: Path, cfg: config.AppConfig, frames: int) -> profile.Timing:
     return _timed(lambda: track_video(video, out, cfg, TrackOptions(max_frames=frames)))
 
 
@@ -102,6 +104,7 @@ def main() -> None:
         decode = _decode(video, args.frames) - _decode(video, 1)
         track = _track(video, tmp / "out", cfg, args.frames) - _track(video, tmp / "o1", cfg, 1)
         stages = stage_costs(video, tmp / "profiled", cfg, args.frames)
+        waits = {busy: decoder_wait(video, args.frames, WORK_MS, busy) for busy in (False, True)}
     cores = len(os.sched_getaffinity(0))
     print(f"video: 1280x720 MJPG (vtrack synth --scene {args.scene}), {args.frames} frames; "
           f"detect_width {cfg.detector.detect_width}")
@@ -117,6 +120,8 @@ def main() -> None:
           f"{cores * decode.wall / cpu:.3f} ({TARGET_RATIO} needs at most "
           f"{1000 * cores * decode.wall / TARGET_RATIO / n:.2f} ms of CPU a frame, this run "
           f"took {1000 * cpu / n:.2f})")
+    print(f"waiting for the decoder, ms a frame, with a consumer that spends {WORK_MS:g} ms a "
+          f"frame asleep: {1000 * waits[False]:.2f}, busy on a core: {1000 * waits[True]:.2f}")
     print("per frame, every stage timed in one thread (vtrack track --profile):")
     print(profile.table(stages))
     # `vtrack track` runs the image stages of frame n + 1 in a worker thread while frame n

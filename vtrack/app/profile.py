@@ -13,10 +13,11 @@ from __future__ import annotations
 
 import contextlib
 import inspect
+import resource
 import time
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Iterator
-from typing import Any
+from typing import Any, NamedTuple
 
 from vtrack.fileio import write_json
 
@@ -52,6 +53,26 @@ ORDER = (START, BACKGROUND, DECODE, *(name for name, _ in DETECTOR_STAGES),
 MAIN_THREAD = ("blobs", "split merged blobs", "standing boxes", "tracker predict",
                "tracker update", OUTPUTS)
 UNACCOUNTED = "not accounted"
+
+
+class Timing(NamedTuple):
+    """Wall and CPU seconds: CPU of this process and of its finished (reaped) children,
+    such as the decoder processes of the readers it closed."""
+
+    wall: float
+    cpu_self: float
+    cpu_children: float
+
+    def __sub__(self, other: Timing) -> Timing:
+        return Timing(*(a - b for a, b in zip(self, other, strict=True)))
+
+
+def now() -> Timing:
+    """The wall clock and the CPU used so far by this process and its finished children."""
+    own, children = (resource.getrusage(who) for who in (resource.RUSAGE_SELF,
+                                                         resource.RUSAGE_CHILDREN))
+    return Timing(time.perf_counter(), own.ru_utime + own.ru_stime,
+                  children.ru_utime + children.ru_stime)
 
 
 class StageTimes:
@@ -139,9 +160,10 @@ def instrumented(detector: Any, tracker: Any, times: StageTimes) -> Iterator[Non
             setattr(detect_module, fn, original)
 
 
-def report(times: StageTimes, frames: int, wall: float) -> dict[str, Any]:
-    """The profile of a run of `frames` frames that took `wall` seconds: per stage its
-    seconds and ms a frame, and the remainder no stage accounts for (wall - sum)."""
+def report(times: StageTimes, frames: int, run: Timing) -> dict[str, Any]:
+    """The profile of a run of `frames` frames that took `run` (wall and CPU seconds): per
+    stage its seconds and ms a frame, and the remainder no stage accounts for (wall - sum)."""
+    wall = run.wall
     seconds = dict(times.seconds)
     names = [n for n in ORDER if n in seconds] + sorted(set(seconds) - set(ORDER))
     rows = [(n, seconds[n]) for n in names]
@@ -149,6 +171,8 @@ def report(times: StageTimes, frames: int, wall: float) -> dict[str, Any]:
     per = 1000.0 / max(frames, 1)
     return {"frames": frames, "wall_seconds": round(wall, 6),
             "ms_per_frame": round(per * wall, 4),
+            "cpu_ms_per_frame": {"process": round(per * run.cpu_self, 4),
+                                 "decoder": round(per * run.cpu_children, 4)},
             "stages": [{"stage": n, "seconds": round(s, 6), "ms_per_frame": round(per * s, 4)}
                        for n, s in rows]}
 
@@ -162,7 +186,9 @@ def table(profile: dict[str, Any]) -> str:
     """The profile as a text table: stage, ms a frame, share of the wall time."""
     wall = profile["wall_seconds"] or 1.0
     lines = [f"profile: {profile['frames']} frames, {profile['wall_seconds']:.2f} s wall, "
-             f"{profile['ms_per_frame']:.2f} ms a frame"]
+             f"{profile['ms_per_frame']:.2f} ms a frame; CPU a frame "
+             f"{profile['cpu_ms_per_frame']['process']:.2f} ms in this process, "
+             f"{profile['cpu_ms_per_frame']['decoder']:.2f} ms in the decoder processes"]
     for row in profile["stages"]:
         lines.append(f"  {row['stage']:<34}{row['ms_per_frame']:8.2f} ms"
                      f"{100 * row['seconds'] / wall:6.1f} %")

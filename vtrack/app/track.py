@@ -103,7 +103,7 @@ class TrackJob:
         from vtrack.vision.detect import MotionDetector
         from vtrack.io.video import VideoReader
 
-        start = time.perf_counter()
+        start = profile.now()
         self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
                                   reconnect_seconds=self.opts.reconnect_seconds,
                                   live=self.opts.live)
@@ -207,14 +207,15 @@ class TrackJob:
         """With --profile, the block's wall time added to stage `name`."""
         return contextlib.nullcontext() if self.times is None else self.times.stage(name)
 
-    def _profile(self, start: float) -> dict[str, Any]:
-        """The stage table of the run that began at `start`; "start-up and close" is the
-        wall time outside the frame loop and the background estimate."""
+    def _profile(self, start: profile.Timing) -> dict[str, Any]:
+        """The stage table of the run that began at `start` (its decoders are closed);
+        "start-up and close" is the wall time outside the frame loop and the background
+        estimate."""
         assert self.times is not None
-        wall = time.perf_counter() - start
-        outside = wall - self.times.seconds.get(profile.BACKGROUND, 0.0)
+        run = profile.now() - start
+        outside = run.wall - self.times.seconds.get(profile.BACKGROUND, 0.0)
         self.times.seconds[profile.START] += outside
-        return profile.report(self.times, self.frames, wall)
+        return profile.report(self.times, self.frames, run)
 
     def _finish(self, parts: list[Any]) -> dict[str, Any]:
         """Stop the decoder, close the video and recording, keep the decoder's log, flush
