@@ -19,8 +19,6 @@ from collections import defaultdict
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, NamedTuple
 
-from vtrack.fileio import write_json
-
 # the order of the table: the order a frame goes through the pipeline
 BACKGROUND = "background estimate (2nd read)"
 DECODE = "decode/transfer (wait for frame)"
@@ -175,11 +173,6 @@ def report(times: StageTimes, frames: int, run: Timing) -> dict[str, Any]:
                                  "decoder": round(per * run.cpu_children, 4)},
             "stages": [{"stage": n, "seconds": round(s, 6), "ms_per_frame": round(per * s, 4)}
                        for n, s in rows]}
-
-
-def write(path: Any, profile: dict[str, Any]) -> None:
-    """profile.json, atomically."""
-    write_json(path, profile)
 
 
 def table(profile: dict[str, Any]) -> str:

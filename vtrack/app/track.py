@@ -147,7 +147,7 @@ class TrackJob:
         finally:
             summary = self._finish(parts)
             if self.times is not None:
-                profile.write(self.out / "profile.json", self._profile(start))
+                write_json(self.out / "profile.json", self._profile(start))
         if self.error:
             raise InputError(self.error)
         return summary
