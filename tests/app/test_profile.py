@@ -38,7 +38,25 @@ def _track(video: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
 def test_profile_table_and_identical_outputs(mast_clip, tmp_path):
     plain = _track(mast_clip, tmp_path / "plain")
     profiled = _track(mast_clip, tmp_path / "profiled", "--profile")
-    assert plain.stderr == ""
+    _check_profile(profiled, tmp_path)
+    # a run without --profile removes a stale profile.json
+    _track(mast_clip, tmp_path / "profiled")
+    assert not (tmp_path / "profiled" / "profile.json").exists()
+
+
+def test_profile_with_the_standing_hold(mast_clip, tmp_path):
+    """The detector's optional stages that use the tracker's predictions (the standing hold,
+    the noise floor in vehicle units) give the same outputs timed in one thread."""
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text("[detector]\nhold_standing = true\nmin_vehicle_share = 0.3\n")
+    _track(mast_clip, tmp_path / "plain", "--config", str(cfg))
+    profiled = _track(mast_clip, tmp_path / "profiled", "--config", str(cfg), "--profile")
+    assert "standing boxes" in _check_profile(profiled, tmp_path)
+
+
+def _check_profile(profiled: subprocess.CompletedProcess, tmp_path: Path) -> dict[str, float]:
+    """The table on stderr against profile.json and the wall time; the outputs of
+    tmp_path/profiled byte-identical to tmp_path/plain's; returns the table."""
     # the table on stderr: a heading with the wall time, one row per stage
     head, *rows = profiled.stderr.strip().splitlines()
     wall_ms = float(re.search(r"([\d.]+) ms a frame", head).group(1))
@@ -66,9 +84,7 @@ def test_profile_table_and_identical_outputs(mast_clip, tmp_path):
         if name == "summary.json":
             a, b = (dict(json.loads(x), fps_processed=0) for x in (a, b))
         assert a == b, name
-    # a run without --profile removes a stale profile.json
-    _track(mast_clip, tmp_path / "profiled")
-    assert not (tmp_path / "profiled" / "profile.json").exists()
+    return table
 
 
 def test_instrumented_restores_the_detector_module():
