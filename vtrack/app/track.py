@@ -26,6 +26,7 @@ from vtrack.analytics.calibration import Calibration
 from vtrack.analytics.traffic import TrafficAnalytics
 from vtrack.app.outputs import (DetectionsCsv, FrameTimes, Sink, TrackedFrame, TrackEnds,
                                 TracksCsv, TrafficSink)
+from vtrack.app import profile
 from vtrack.errors import InputError
 from vtrack.fileio import replace_dir, write_json
 from vtrack.tracking.tracker import FrameTracks, Tracker
@@ -50,6 +51,7 @@ class TrackOptions:
     reconnect_seconds: float = 30.0   # a live source silent this long is lost (exit 2)
     flush_seconds: float = 10.0       # outputs brought up to date at least this often
     live: str = "auto"                # --live auto|yes|no (io.sources.live_request)
+    profile: bool = False             # time every stage into profile.json (app/profile.py)
     warn: Callable[[str], None] = _warn
 
 
@@ -92,6 +94,7 @@ class TrackJob:
         self.elapsed = 0.0
         self.stopped_by: str | None = None   # why the run ended (None while it runs)
         self.error: str | None = None
+        self.times = profile.StageTimes() if opts.profile else None   # --profile
 
     # ------------------------------------------------------------------ running
     def run(self) -> dict[str, Any]:
@@ -100,6 +103,7 @@ class TrackJob:
         from vtrack.vision.detect import MotionDetector
         from vtrack.io.video import VideoReader
 
+        start = profile.now()
         self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
                                   reconnect_seconds=self.opts.reconnect_seconds,
                                   live=self.opts.live)
@@ -125,7 +129,8 @@ class TrackJob:
             # a web server); a live stream read every frame (--live no) has no start to
             # read again, and a camera may not open twice
             if not self.reader.live and (self.source.is_file or self.info.frame_count):
-                detector.initialise(self._background_samples())
+                with self._stage(profile.BACKGROUND):
+                    detector.initialise(self._background_samples())
             tracker = Tracker(self.cfg.tracker, self.info.width, self.info.height,
                               self.info.fps)
             self.sinks = self._sinks(tracker)
@@ -141,6 +146,8 @@ class TrackJob:
             self.stopped_by, self.error = "error", str(exc)
         finally:
             summary = self._finish(parts)
+            if self.times is not None:
+                write_json(self.out / "profile.json", self._profile(start))
         if self.error:
             raise InputError(self.error)
         return summary
@@ -151,8 +158,7 @@ class TrackJob:
         ends = TrackEnds()
         next_flush = 0.0   # the first frame is flushed at once
         t0 = time.perf_counter()
-        # closing: the worker stops with the loop, also when the loop body raises
-        with contextlib.closing(segmented(self.reader, detector)) as frames:
+        with self._frames(detector, tracker) as frames:
             for frame, fg in frames:
                 # The tracker predicts on every frame (the detector's warm-up included) once
                 # the camera's motion is known; the detector divides a blob holding several
@@ -162,24 +168,54 @@ class TrackJob:
                 ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes,
                                     dets.changed)
                 self.frames = frame.index
-                if self.detections is not None:
-                    self.detections.add(frame.index, dets.boxes)
-                times.add(frame.index, frame.time)
-                tf = TrackedFrame(frame.index, frame.time, ft, ends.update(ft), times)
-                for sink in self.sinks:
-                    sink.frame(tf)
-                self.trails.update(tf)
-                if self.opts.save_frames or writer is not None:
-                    self._annotate(frame, ft, dets, writer)
-                if logger is not None:
-                    logger.log_frame(frame, dets, ft, fg.mask)
-                    logger.log_trails(self.trails.paths)
-                self.elapsed = time.perf_counter() - t0
-                if bar is not None:
-                    bar.update(1)
-                if time.monotonic() >= next_flush:
-                    self._flush()
-                    next_flush = time.monotonic() + self.opts.flush_seconds
+                with self._stage(profile.OUTPUTS):
+                    if self.detections is not None:
+                        self.detections.add(frame.index, dets.boxes)
+                    times.add(frame.index, frame.time)
+                    tf = TrackedFrame(frame.index, frame.time, ft, ends.update(ft), times)
+                    for sink in self.sinks:
+                        sink.frame(tf)
+                    self.trails.update(tf)
+                    if self.opts.save_frames or writer is not None:
+                        self._annotate(frame, ft, dets, writer)
+                    if logger is not None:
+                        logger.log_frame(frame, dets, ft, fg.mask)
+                        logger.log_trails(self.trails.paths)
+                    self.elapsed = time.perf_counter() - t0
+                    if bar is not None:
+                        bar.update(1)
+                    if time.monotonic() >= next_flush:
+                        self._flush()
+                        next_flush = time.monotonic() + self.opts.flush_seconds
+        if self.times is not None:   # the loop's wall time less the stages is unaccounted
+            self.times.seconds[profile.START] -= time.perf_counter() - t0
+
+    @contextlib.contextmanager
+    def _frames(self, detector: Any, tracker: Tracker) -> Iterator[Iterator[tuple[Any, Any]]]:
+        """(frame, foreground) pairs: `segmented` (the image stages of the next frame in a
+        worker thread), or with --profile every stage timed, all in this thread."""
+        if self.times is None:
+            # closing: the worker stops with the loop, also when the loop body raises
+            with contextlib.closing(segmented(self.reader, detector)) as frames:
+                yield frames
+            return
+        with profile.instrumented(detector, tracker, self.times):
+            yield ((frame, detector.segment(frame.image))
+                   for frame in self.times.iterate(profile.DECODE, self.reader))
+
+    def _stage(self, name: str) -> contextlib.AbstractContextManager[None]:
+        """With --profile, the block's wall time added to stage `name`."""
+        return contextlib.nullcontext() if self.times is None else self.times.stage(name)
+
+    def _profile(self, start: profile.Timing) -> dict[str, Any]:
+        """The stage table of the run that began at `start` (its decoders are closed);
+        "start-up and close" is the wall time outside the frame loop and the background
+        estimate."""
+        assert self.times is not None
+        run = profile.now() - start
+        outside = run.wall - self.times.seconds.get(profile.BACKGROUND, 0.0)
+        self.times.seconds[profile.START] += outside
+        return profile.report(self.times, self.frames, run)
 
     def _finish(self, parts: list[Any]) -> dict[str, Any]:
         """Stop the decoder, close the video and recording, keep the decoder's log, flush
@@ -237,7 +273,7 @@ class TrackJob:
         # first flush).
         for stale in ("annotated.mp4", "decoder.log", "detections.csv", "vehicles.csv",
                       "counts.csv", "zone_events.csv", "crossings.csv", "movements.csv",
-                      "speeds.csv"):
+                      "speeds.csv", "profile.json"):
             (self.out / stale).unlink(missing_ok=True)
         if (self.out / "frames").exists() or self.opts.save_frames:
             replace_dir(self.out / "frames")

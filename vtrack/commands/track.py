@@ -60,6 +60,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--flush-seconds", type=float, default=10.0, metavar="S",
                    help="bring the output files up to date at least every S seconds "
                         "(default 10)")
+    p.add_argument("--profile", action="store_true",
+                   help="time every stage (decode, image stages, blobs, tracker, outputs) "
+                        "and print ms a frame per stage to stderr, also written to "
+                        "profile.json; the image stages then run in the main thread, not "
+                        "overlapped with tracking (outputs unchanged)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -87,8 +92,16 @@ def run(args: argparse.Namespace) -> int:
                         progress=not args.quiet and sys.stdout.isatty(),
                         reconnect_seconds=args.reconnect_seconds,
                         flush_seconds=args.flush_seconds, live=args.live,
-                        calibration=calibration, bin_seconds=args.bin_seconds)
+                        calibration=calibration, bin_seconds=args.bin_seconds,
+                        profile=args.profile)
     summary = track_video(source.spec, out, cfg, opts)
+    if args.profile:
+        import json
+
+        from vtrack.app import profile
+
+        table = profile.table(json.loads((out / "profile.json").read_text()))
+        print(table, file=sys.stderr)
     if not args.quiet:
         counts = ", ".join(f"line {c.get('name', k)}: {c['forward']} fwd / "
                            f"{c['backward']} bwd" for k, c in enumerate(summary["counts"]))
