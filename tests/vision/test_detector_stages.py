@@ -10,7 +10,8 @@ import numpy as np
 from test_motion_detector import RECTS, START, Scene, _match
 from vtrack.vision.background import estimate_background, median_image, mode_image
 from vtrack.vision.detect import DetectorConfig, MotionDetector
-from vtrack.vision.stabilise import Stabiliser, border_edges_kept, invert, transform_boxes
+from vtrack.vision.stabilise import (IDENTITY, Stabiliser, border_edges_kept, corner_shift, invert,
+                                     transform_boxes)
 
 
 def _shaken(scene: Scene, n: int, rng: np.random.Generator) -> tuple[np.ndarray, tuple]:
@@ -367,3 +368,39 @@ def test_a_blob_cut_by_the_reference_border_stays_on_the_frame_border():
     np.testing.assert_allclose(kept, [[0, 0, 43, 32], [103, 52, 20, 10], [303, 202, 20, 40]])
     back = border_edges_kept(ref, transform_boxes(invert(m), ref), 320, 240)
     np.testing.assert_allclose(back, [[-3, -2, 40, 30], [97, 48, 20, 10], [297, 198, 23, 42]])
+
+
+def test_stabiliser_probe_switches_off_for_a_still_camera_only():
+    """The stabiliser estimates the camera's motion (Lucas-Kanade + RANSAC) over its first
+    `probe_frames` frames; a camera whose image corners moved no more than `still_px` then
+    costs nothing: the estimate is no longer called, each frame passes through unwarped
+    with the identity, and the shift-tolerance stage stays off (`moved` is False). A
+    camera that sways keeps the stabiliser on, every frame warped back onto the reference.
+    Vehicles drive through both scenes during the probe."""
+    probe = 20
+    for shaken in (False, True):
+        scene, rng = Scene(320, 240, RECTS, seed=3), np.random.default_rng(0)
+        det = MotionDetector(DetectorConfig(warmup_frames=10), 320, 240, fps=probe / 2.0)
+        stab = det.stabiliser
+        assert stab.probe_frames == probe
+        estimates = []
+        estimate = stab.estimate
+        stab.estimate = lambda small, guess=None: estimates.append(stab.frames) or estimate(
+            small, guess)
+        for n in range(START - 10, START + 30):      # the rectangles enter at frame 10
+            img = _shaken(scene, n, rng)[0] if shaken else scene.frame(n)
+            det.detect(img)
+            assert det.foreground is not None
+        if shaken:
+            assert stab.active and stab.moved
+            assert estimates == list(range(1, 41))            # every frame estimated
+            small = det.prepare(_shaken(scene, START + 30, rng)[0])
+            out, m = stab(small)
+            assert out is not small and corner_shift(m, 320, 240) > 0.5
+        else:
+            assert not stab.active and not stab.moved
+            assert estimates == list(range(1, probe + 1))     # the probe's frames only
+            small = det.prepare(scene.frame(START + 30))
+            out, m = stab(small)
+            assert out is small and np.array_equal(m, IDENTITY)
+            assert len(estimates) == probe
