@@ -311,3 +311,36 @@ def test_a_worker_that_dies_fails_only_its_video(tmp_path, clip_factory):
     rows = _read_batch(out)
     assert [r["status"] for r in rows] == ["failed", "ok", "ok"]
     assert "worker process died (killed by signal 9)" in rows[0]["error"]
+
+
+@pytest.mark.parametrize("when", ["after", "during"])
+def test_an_interrupt_after_the_run_finished_still_counts_the_video(tmp_path, clip_factory,
+                                                                     monkeypatch, when):
+    """A worker interrupted between the end of a video's run (summary.json complete) and
+    sending its row reports the video "ok"; one interrupted while running reports
+    "interrupted" (and its summary says not complete)."""
+    import vtrack.app.track as track_app
+    from vtrack.app.config import AppConfig
+    from vtrack.batch.task import VideoTask, process_video
+
+    video = tmp_path / "v.avi"
+    _copy(clip_factory(40, 0), video)
+    real = track_app.track_video
+
+    def interrupted(src, out, cfg, opts):
+        if when == "during":
+            opts.max_frames = 10                 # a run that ends early, as an interrupt
+        summary = real(src, out, cfg, opts)
+        if when == "during":
+            (Path(out) / "summary.json").write_text(json.dumps({**summary, "complete": False}))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(track_app, "track_video", interrupted)
+    out = tmp_path / "out"
+    task = VideoTask(0, str(video), str(video), str(out), str(out), AppConfig())
+    result = process_video(task)
+    if when == "after":
+        summary = json.loads((out / "summary.json").read_text())
+        assert result["status"] == "ok" and result["frames"] == summary["frames"] == 40
+    else:
+        assert result["status"] == "interrupted" and result["frames"] == ""

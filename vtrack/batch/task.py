@@ -12,8 +12,10 @@ Kept light at import time: cluster workers import this module to unpickle the fu
 from __future__ import annotations
 
 import ctypes
+import json
 import os
 import threading
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -77,10 +79,24 @@ def interrupt_batch(batch_id: str) -> int:
 # ------------------------------------------------------------------------- the task
 def process_video(task: VideoTask) -> dict:
     """Track one video (same outputs as `vtrack track`); returns its batch.csv row."""
+    started = time.time()
     try:
         return _process(task)
     except KeyboardInterrupt:
-        return row(task, "interrupted")
+        return _completed(task, started) or row(task, "interrupted")
+
+
+def _completed(task: VideoTask, started: float) -> dict | None:
+    """The "ok" row of a video whose run finished (its summary.json, written by this task,
+    says complete) before the interrupt landed, else None: a finished video still counts."""
+    path = Path(task.out_abs) / "summary.json"
+    try:
+        if path.stat().st_mtime < started:
+            return None
+        summary = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return row(task, "ok", summary) if summary.get("complete") is True else None
 
 
 def _process(task: VideoTask) -> dict:
