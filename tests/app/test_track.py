@@ -208,7 +208,7 @@ class _Recorder:
         self.calls: list[tuple[int, str]] = []
         self.fail_at = fail_at
 
-    def segment(self, image):
+    def segment(self, image, prepared=False):
         import threading
 
         if image == self.fail_at:
@@ -223,7 +223,7 @@ def _frames(n: int, fail_after: int | None = None):
     from vtrack.errors import InputError
 
     for k in range(1, n + 1):
-        yield SimpleNamespace(index=k, image=k)
+        yield SimpleNamespace(index=k, image=k), False
         if k == fail_after:
             raise InputError("source lost after frame %d" % k)
 
