@@ -53,6 +53,7 @@ class TrackOptions:
     flush_seconds: float = 10.0       # outputs brought up to date at least this often
     live: str = "auto"                # --live auto|yes|no (io.sources.live_request)
     profile: bool = False             # time every stage into profile.json (app/profile.py)
+    cv_threads: int = 1               # OpenCV's threads during the run (0: its default)
     warn: Callable[[str], None] = _warn
 
 
@@ -102,10 +103,14 @@ class TrackJob:
     def run(self) -> dict[str, Any]:
         """Track the whole source; returns the summary (also on interruption or a lost
         source, then re-raised)."""
+        start = profile.now()
+        with opencv_threads(self.opts.cv_threads):
+            return self._run(start)
+
+    def _run(self, start: profile.Timing) -> dict[str, Any]:
         from vtrack.vision.detect import MotionDetector
         from vtrack.io.video import VideoReader
 
-        start = profile.now()
         self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
                                   reconnect_seconds=self.opts.reconnect_seconds,
                                   live=self.opts.live)
@@ -383,6 +388,25 @@ class TrackJob:
             summary["error"] = self.error
         write_json(self.out / "summary.json", summary)
         return summary
+
+
+@contextlib.contextmanager
+def opencv_threads(n: int) -> Iterator[None]:
+    """OpenCV's thread pool at `n` threads inside the block (0: unchanged). The pipeline
+    keeps the cores busy with its own threads (the decoder process, the image stages'
+    worker, the tracking); OpenCV's pool on top of them costs ~1 ms of CPU a frame at
+    1280x720 for no gain in wall time (docs/SPEED.md)."""
+    if n <= 0:
+        yield
+        return
+    import cv2
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(n)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
 
 
 def segmented(frames: Iterable[tuple[Any, bool]], detector: Any
