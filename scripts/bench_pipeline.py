@@ -1,15 +1,16 @@
-"""Tracked fps divided by decode-only fps on a 1280x720 MJPG video from `vtrack synth`,
-measured in one run, and what each stage of the detector and the tracker costs per frame.
-Start-up (process spawn, model set-up) is excluded by subtracting a one-frame run from each
-timing; the tracked run includes the second read of the video's first seconds that
-estimates the background.
+"""Tracked fps divided by decode-only fps on an MJPG video from `vtrack synth` (1280x720 by
+default, `--size`), measured in one run, and what each stage of the detector and the tracker
+costs per frame. Start-up (process spawn, model set-up) is excluded by subtracting a
+one-frame run from each timing; the tracked run includes the background estimate from the
+video's first seconds.
 
 It also prints the CPU time each run spends per frame, in this process and in the decoder
 children, and what that work allows: a run that needs C ms of CPU a frame on N cores takes
 at least C / N ms a frame, so the ratio cannot exceed N x (decode-only ms a frame) / C,
 however the work is spread over threads and processes.
 
-    .venv/bin/python scripts/bench_pipeline.py [--frames 300] [--scene mast] [--config CFG]
+    .venv/bin/python scripts/bench_pipeline.py [--frames 300] [--scene mast] [--size 1280x720]
+                                               [--config CFG]
 """
 
 from __future__ import annotations
@@ -78,27 +79,41 @@ def stage_costs(video: Path, out: Path, cfg: config.AppConfig, frames: int) -> d
     return json.loads((out / "profile.json").read_text())
 
 
+def _size(text: str) -> tuple[int, int]:
+    """WIDTHxHEIGHT -> (width, height)."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, got {text!r}") from None
+    if width < 16 or height < 16:
+        raise argparse.ArgumentTypeError(f"size too small: {text!r}")
+    return width, height
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--scene", default="mast", help="synthetic scene (default mast: a "
                     "swaying camera, shadows, perspective)")
+    ap.add_argument("--size", default="1280x720", type=_size, help="WIDTHxHEIGHT of the "
+                    "video (default 1280x720)")
     ap.add_argument("--config", help="TOML config for the tracked run (default config if absent)")
     args = ap.parse_args()
+    width, height = args.size
     cfg = config.load(args.config)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if args.scene == "overhead":
             from vtrack.sim.traffic import render_scene
 
-            render_scene(tmp / "synth", frames=args.frames, vehicles=20, width=1280,
-                         height=720, fps=25.0, seed=0)
+            render_scene(tmp / "synth", frames=args.frames, vehicles=20, width=width,
+                         height=height, fps=25.0, seed=0)
         else:
             from vtrack.sim.clip import render_preset
             from vtrack.sim.nuisance import parse_nuisances
 
-            render_preset(tmp / "synth", args.scene, frames=args.frames, width=1280,
-                          height=720, fps=25.0, seed=0, nuisances=parse_nuisances("all"))
+            render_preset(tmp / "synth", args.scene, frames=args.frames, width=width,
+                          height=height, fps=25.0, seed=0, nuisances=parse_nuisances("all"))
         video = tmp / "synth" / "video.avi"
         n = args.frames - 1
         decode = _decode(video, args.frames) - _decode(video, 1)
@@ -106,7 +121,7 @@ def main() -> None:
         stages = stage_costs(video, tmp / "profiled", cfg, args.frames)
         waits = {busy: decoder_wait(video, args.frames, WORK_MS, busy) for busy in (False, True)}
     cores = len(os.sched_getaffinity(0))
-    print(f"video: 1280x720 MJPG (vtrack synth --scene {args.scene}), {args.frames} frames; "
+    print(f"video: {width}x{height} MJPG (vtrack synth --scene {args.scene}), {args.frames} frames; "
           f"detect_width {cfg.detector.detect_width}")
     print(f"decode only : {n / decode.wall:8.1f} fps")
     print(f"tracked     : {n / track.wall:8.1f} fps")
