@@ -436,3 +436,24 @@ def test_shift_tolerance_blends_follow_their_definition():
         got = shift._blends(colours, bg, ys, xs)
         assert got.tolist() == want
         assert 0 < sum(want) < len(want) or trial >= 3
+
+
+def test_long_pieces_of_a_mask():
+    """shadows._long keeps the 8-connected pieces whose box has a side of at least
+    `length`, on sparse random masks (16-bit labels) and on a checkerboard of isolated
+    pixels with more pieces than 16 bits can number (32-bit labels)."""
+    from vtrack.vision.shadows import _long
+
+    rng = np.random.default_rng(4)
+    masks = [(rng.random((120, 200)) < p).astype(np.uint8) * 255 for p in (0.01, 0.3, 0.5)]
+    masks.append(np.zeros((360, 800), np.uint8))
+    masks[-1][::2, ::2] = 255                           # 72,000 isolated pixels
+    masks[-1][100, 100:140] = 255                       # one long line through them
+    for mask in masks:
+        _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        keep = np.maximum(stats[:, 2], stats[:, 3]) >= 12
+        keep[0] = False
+        want = keep[labels].astype(np.uint8)
+        got = _long(mask, 12)
+        assert got.dtype == np.uint8 and np.array_equal(got, want)
+    assert got.sum() == 41                              # and the grid pixel at its end
