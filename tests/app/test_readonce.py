@@ -2,12 +2,12 @@
 same outputs as a second read of the video's start, and a source that fails while it reads
 ahead."""
 
-from pathlib import Path
+import json
 
 import numpy as np
 import pytest
 
-from vtrack.app import config, readonce
+from vtrack.app import config, profile, readonce
 from vtrack.app.track import TrackOptions, track_video
 from vtrack.errors import InputError
 from vtrack.io.video import Frame
@@ -58,6 +58,13 @@ def test_one_decoding_and_the_outputs_of_a_second_read(synth_video, tmp_path, mo
         once, twice = ((tmp_path / d / name) for d in ("once", "twice"))
         assert once.exists() and once.read_bytes() == twice.read_bytes(), name
     assert (tmp_path / "once" / "tracks.csv").read_text().count("\n") > 100
+    if profiled:   # both ways, the stages and the remainder add up to the wall time
+        for run in ("once", "twice"):
+            prof = json.loads((tmp_path / run / "profile.json").read_text())
+            rows = {r["stage"]: r["seconds"] for r in prof["stages"]}
+            assert rows[profile.BACKGROUND] > 0 and rows[profile.START] > 0, rows
+            assert rows[profile.UNACCOUNTED] >= 0, rows
+            assert sum(rows.values()) == pytest.approx(prof["wall_seconds"], abs=1e-3)
 
 
 class _Detector:
