@@ -395,7 +395,7 @@ def opencv_threads(n: int) -> Iterator[None]:
     """OpenCV's thread pool at `n` threads inside the block (0: unchanged). The pipeline
     keeps the cores busy with its own threads (the decoder process, the image stages'
     worker, the tracking); OpenCV's pool on top of them costs ~1 ms of CPU a frame at
-    1280x720 for no gain in wall time (docs/SPEED.md)."""
+    1280x720 for no gain in wall time (docs/RESULTS.md, Speed)."""
     if n <= 0:
         yield
         return
