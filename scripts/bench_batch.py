@@ -1,7 +1,7 @@
 """Batch throughput: videos per minute with 1 and 2 local workers on the same synthetic
 videos, measured in one run (wall time of `run_batch`, pool start-up included).
 
-    .venv/bin/python scripts/bench_batch.py [--videos 6] [--frames 150] [--repeat 1]
+    .venv/bin/python scripts/bench_batch.py [--videos 6] [--frames 150] [--repeat 1] [--copies]
 
 The videos are rendered by vtrack.sim (different seeds) into a temporary folder; each
 measurement tracks all of them into a fresh output folder. On a machine shared with other
@@ -22,12 +22,20 @@ from pathlib import Path
 os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 
-def make_videos(folder: Path, count: int, frames: int, width: int, height: int) -> None:
+def make_videos(folder: Path, count: int, frames: int, width: int, height: int,
+                copies: bool = False) -> None:
+    """`count` synthetic videos (seeds 0, 1, ...), or with `copies` one video copied
+    `count` times (each worker then does the same work)."""
+    import shutil
+
     from vtrack.sim.traffic import render_scene
 
-    for seed in range(count):
+    for seed in range(1 if copies else count):
         render_scene(folder / f"clip{seed:02d}", frames=frames, vehicles=12, width=width,
                      height=height, fps=25.0, seed=seed)
+    for k in range(1, count if copies else 1):
+        (folder / f"clip{k:02d}").mkdir()
+        shutil.copy(folder / "clip00" / "video.avi", folder / f"clip{k:02d}" / "video.avi")
 
 
 def _burn(n: int) -> int:
@@ -83,6 +91,8 @@ def main() -> None:
     ap.add_argument("--height", type=int, default=360)
     ap.add_argument("--repeat", type=int, default=1, help="measurements per worker count")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--copies", action="store_true", help="copies of one video instead of "
+                    "videos of different seeds")
     args = ap.parse_args()
 
     from vtrack.batch.runner import cpu_count
@@ -90,8 +100,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="vtrack-bench-") as tmp:
         tmp = Path(tmp)
         t0 = time.perf_counter()
-        make_videos(tmp / "videos", args.videos, args.frames, args.width, args.height)
-        print(f"{args.videos} synthetic videos, {args.frames} frames {args.width}x{args.height}"
+        make_videos(tmp / "videos", args.videos, args.frames, args.width, args.height,
+                    args.copies)
+        what = "copies of a synthetic video" if args.copies else "synthetic videos"
+        print(f"{args.videos} {what}, {args.frames} frames {args.width}x{args.height}"
               f" each (rendered in {time.perf_counter() - t0:.1f} s); {cpu_count()} cores, "
               f"load average {os.getloadavg()[0]:.1f}")
         results: dict[int, list[tuple[float, float]]] = {w: [] for w in args.workers}

@@ -1,15 +1,16 @@
-"""Tracked fps divided by decode-only fps on a 1280x720 MJPG video from `vtrack synth`,
-measured in one run, and what each stage of the detector and the tracker costs per frame.
-Start-up (process spawn, model set-up) is excluded by subtracting a one-frame run from each
-timing; the tracked run includes the second read of the video's first seconds that
-estimates the background.
+"""Tracked fps divided by decode-only fps on an MJPG video from `vtrack synth` (1280x720 by
+default, `--size`), measured in one run, and what each stage of the detector and the tracker
+costs per frame. Start-up (process spawn, model set-up) is excluded by subtracting a
+one-frame run from each timing; the tracked run includes the background estimate from the
+video's first seconds.
 
 It also prints the CPU time each run spends per frame, in this process and in the decoder
 children, and what that work allows: a run that needs C ms of CPU a frame on N cores takes
 at least C / N ms a frame, so the ratio cannot exceed N x (decode-only ms a frame) / C,
 however the work is spread over threads and processes.
 
-    .venv/bin/python scripts/bench_pipeline.py [--frames 300] [--scene mast] [--config CFG]
+    .venv/bin/python scripts/bench_pipeline.py [--frames 300] [--scene mast] [--size 1280x720]
+                                               [--config CFG]
 """
 
 from __future__ import annotations
@@ -72,10 +73,31 @@ def _track(video: Path, out: Path, cfg: config.AppConfig, frames: int) -> profil
     return _timed(lambda: track_video(video, out, cfg, TrackOptions(max_frames=frames)))
 
 
-def stage_costs(video: Path, out: Path, cfg: config.AppConfig, frames: int) -> dict[str, Any]:
-    """The stage table of `vtrack track --profile` (app/profile.py) on `video`."""
-    track_video(video, out, cfg, TrackOptions(max_frames=frames, profile=True))
+def stage_costs(video: Path, out: Path, cfg: config.AppConfig, frames: int,
+                cpu: bool = False) -> dict[str, Any]:
+    """The stage table of `vtrack track --profile` (app/profile.py) on `video`. `cpu`: each
+    stage timed by the CPU time of the thread that runs them all (time.thread_time instead
+    of the wall clock: unaffected by other work on the machine; waiting for the decoder
+    then counts only the frame's transfer, the decoder's own CPU being another process's)."""
+    clock = time.perf_counter
+    if cpu:
+        time.perf_counter = time.thread_time
+    try:
+        track_video(video, out, cfg, TrackOptions(max_frames=frames, profile=True))
+    finally:
+        time.perf_counter = clock
     return json.loads((out / "profile.json").read_text())
+
+
+def _size(text: str) -> tuple[int, int]:
+    """WIDTHxHEIGHT -> (width, height)."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, got {text!r}") from None
+    if width < 16 or height < 16:
+        raise argparse.ArgumentTypeError(f"size too small: {text!r}")
+    return width, height
 
 
 def main() -> None:
@@ -83,30 +105,37 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--scene", default="mast", help="synthetic scene (default mast: a "
                     "swaying camera, shadows, perspective)")
+    ap.add_argument("--size", default="1280x720", type=_size, help="WIDTHxHEIGHT of the "
+                    "video (default 1280x720)")
     ap.add_argument("--config", help="TOML config for the tracked run (default config if absent)")
+    ap.add_argument("--stage-clock", choices=("wall", "cpu"), default="wall",
+                    help="time the stage table by the wall clock (default) or by the CPU "
+                         "time of the thread that runs it (robust to a busy machine)")
     args = ap.parse_args()
+    width, height = args.size
     cfg = config.load(args.config)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if args.scene == "overhead":
             from vtrack.sim.traffic import render_scene
 
-            render_scene(tmp / "synth", frames=args.frames, vehicles=20, width=1280,
-                         height=720, fps=25.0, seed=0)
+            render_scene(tmp / "synth", frames=args.frames, vehicles=20, width=width,
+                         height=height, fps=25.0, seed=0)
         else:
             from vtrack.sim.clip import render_preset
             from vtrack.sim.nuisance import parse_nuisances
 
-            render_preset(tmp / "synth", args.scene, frames=args.frames, width=1280,
-                          height=720, fps=25.0, seed=0, nuisances=parse_nuisances("all"))
+            render_preset(tmp / "synth", args.scene, frames=args.frames, width=width,
+                          height=height, fps=25.0, seed=0, nuisances=parse_nuisances("all"))
         video = tmp / "synth" / "video.avi"
         n = args.frames - 1
         decode = _decode(video, args.frames) - _decode(video, 1)
         track = _track(video, tmp / "out", cfg, args.frames) - _track(video, tmp / "o1", cfg, 1)
-        stages = stage_costs(video, tmp / "profiled", cfg, args.frames)
+        stages = stage_costs(video, tmp / "profiled", cfg, args.frames,
+                             args.stage_clock == "cpu")
         waits = {busy: decoder_wait(video, args.frames, WORK_MS, busy) for busy in (False, True)}
     cores = len(os.sched_getaffinity(0))
-    print(f"video: 1280x720 MJPG (vtrack synth --scene {args.scene}), {args.frames} frames; "
+    print(f"video: {width}x{height} MJPG (vtrack synth --scene {args.scene}), {args.frames} frames; "
           f"detect_width {cfg.detector.detect_width}")
     print(f"decode only : {n / decode.wall:8.1f} fps")
     print(f"tracked     : {n / track.wall:8.1f} fps")
@@ -122,7 +151,8 @@ def main() -> None:
           f"took {1000 * cpu / n:.2f})")
     print(f"waiting for the decoder, ms a frame, with a consumer that spends {WORK_MS:g} ms a "
           f"frame asleep: {1000 * waits[False]:.2f}, busy on a core: {1000 * waits[True]:.2f}")
-    print("per frame, every stage timed in one thread (vtrack track --profile):")
+    clock = "its CPU time" if args.stage_clock == "cpu" else "the wall clock"
+    print(f"per frame, every stage timed in one thread by {clock} (vtrack track --profile):")
     print(profile.table(stages))
     # `vtrack track` runs the image stages of frame n + 1 in a worker thread while frame n
     # is tracked (app/track.py: segmented): the larger of the two sums bounds the rate.

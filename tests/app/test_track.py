@@ -208,7 +208,7 @@ class _Recorder:
         self.calls: list[tuple[int, str]] = []
         self.fail_at = fail_at
 
-    def segment(self, image):
+    def segment(self, image, prepared=False):
         import threading
 
         if image == self.fail_at:
@@ -223,7 +223,7 @@ def _frames(n: int, fail_after: int | None = None):
     from vtrack.errors import InputError
 
     for k in range(1, n + 1):
-        yield SimpleNamespace(index=k, image=k)
+        yield SimpleNamespace(index=k, image=k), False
         if k == fail_after:
             raise InputError("source lost after frame %d" % k)
 
@@ -252,3 +252,34 @@ def test_segmented_gives_the_frame_in_hand_before_a_source_error():
         for f, _ in segmented(_frames(9), _Recorder(fail_at=3)):
             got.append(f.index)
     assert got == [1, 2]
+
+
+def test_opencv_threads_during_a_run(synth_video, tmp_path, monkeypatch):
+    """The run uses OpenCV with `cv_threads` threads (image stages included, in the worker
+    thread) and leaves OpenCV's setting as it found it."""
+    import cv2
+
+    from vtrack.app import config
+    from vtrack.app.track import TrackOptions, track_video
+    from vtrack.vision.detect import MotionDetector
+
+    seen = set()
+    segment = MotionDetector.segment
+
+    def spy(self, *args, **kwargs):
+        seen.add(cv2.getNumThreads())
+        return segment(self, *args, **kwargs)
+
+    monkeypatch.setattr(MotionDetector, "segment", spy)
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(2)
+    try:
+        track_video(synth_video(0) / "video.avi", tmp_path / "a", config.load(None),
+                    TrackOptions(max_frames=20))
+        assert seen == {1} and cv2.getNumThreads() == 2
+        seen.clear()
+        track_video(synth_video(0) / "video.avi", tmp_path / "b", config.load(None),
+                    TrackOptions(max_frames=20, cv_threads=0))
+        assert seen == {2}
+    finally:
+        cv2.setNumThreads(before)

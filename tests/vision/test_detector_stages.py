@@ -404,3 +404,56 @@ def test_stabiliser_probe_switches_off_for_a_still_camera_only():
             out, m = stab(small)
             assert out is small and np.array_equal(m, IDENTITY)
             assert len(estimates) == probe
+
+
+def test_shift_tolerance_blends_follow_their_definition():
+    """ShiftTolerance._blends against its definition written out pixel pair by pixel pair
+    (min(a, b) - t <= c <= max(a, b) + t in every channel, for some 4-adjacent pair a, b of
+    the window, image edges replicated), on random colours near the background's and at
+    the saturation limits 0 and 255."""
+    from vtrack.vision.jitter import ShiftTolerance
+
+    rng = np.random.default_rng(3)
+    shift = ShiftTolerance(8.0, 2)
+    for trial in range(6):
+        if trial < 3:
+            bg = np.clip(rng.normal(120, 10 + 30 * trial, (30, 40, 3)), 0, 255).astype(np.uint8)
+        else:
+            bg = rng.choice(np.array([0, 3, 9, 246, 250, 255], np.uint8), (30, 40, 3))
+        ys, xs = rng.integers(0, 30, 400), rng.integers(0, 40, 400)
+        colours = np.clip(bg[ys, xs].astype(int) + rng.integers(-30, 31, (400, 3)), 0, 255
+                          ).astype(np.uint8)
+        if trial >= 3:
+            colours = rng.choice(np.array([0, 1, 8, 247, 254, 255], np.uint8), (400, 3))
+        want = []
+        for y, x, c in zip(ys, xs, colours.astype(int)):
+            win = bg[np.clip(np.arange(y - 2, y + 3), 0, 29)][:, np.clip(
+                np.arange(x - 2, x + 3), 0, 39)].astype(int)
+            pairs = [(win[i, j], win[i, j + 1]) for i in range(5) for j in range(4)]
+            pairs += [(win[i, j], win[i + 1, j]) for i in range(4) for j in range(5)]
+            want.append(any(np.all((np.minimum(a, b) - 8 <= c) & (c <= np.maximum(a, b) + 8))
+                            for a, b in pairs))
+        got = shift._blends(colours, bg, ys, xs)
+        assert got.tolist() == want
+        assert 0 < sum(want) < len(want) or trial >= 3
+
+
+def test_long_pieces_of_a_mask():
+    """shadows._long keeps the 8-connected pieces whose box has a side of at least
+    `length`, on sparse random masks (16-bit labels) and on a checkerboard of isolated
+    pixels with more pieces than 16 bits can number (32-bit labels)."""
+    from vtrack.vision.shadows import _long
+
+    rng = np.random.default_rng(4)
+    masks = [(rng.random((120, 200)) < p).astype(np.uint8) * 255 for p in (0.01, 0.3, 0.5)]
+    masks.append(np.zeros((360, 800), np.uint8))
+    masks[-1][::2, ::2] = 255                           # 72,000 isolated pixels
+    masks[-1][100, 100:140] = 255                       # one long line through them
+    for mask in masks:
+        _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        keep = np.maximum(stats[:, 2], stats[:, 3]) >= 12
+        keep[0] = False
+        want = keep[labels].astype(np.uint8)
+        got = _long(mask, 12)
+        assert got.dtype == np.uint8 and np.array_equal(got, want)
+    assert got.sum() == 41                              # and the grid pixel at its end

@@ -20,7 +20,7 @@ from collections.abc import Callable, Iterable, Iterator
 from typing import Any, NamedTuple
 
 # the order of the table: the order a frame goes through the pipeline
-BACKGROUND = "background estimate (2nd read)"
+BACKGROUND = "background estimate"
 DECODE = "decode/transfer (wait for frame)"
 OUTPUTS = "outputs (files, trails, flush)"
 START = "start-up and close"

@@ -27,6 +27,7 @@ from vtrack.analytics.traffic import TrafficAnalytics
 from vtrack.app.outputs import (DetectionsCsv, FrameTimes, Sink, TrackedFrame, TrackEnds,
                                 TracksCsv, TrafficSink)
 from vtrack.app import profile
+from vtrack.app.readonce import read_once
 from vtrack.errors import InputError
 from vtrack.fileio import replace_dir, write_json
 from vtrack.tracking.tracker import FrameTracks, Tracker
@@ -52,6 +53,7 @@ class TrackOptions:
     flush_seconds: float = 10.0       # outputs brought up to date at least this often
     live: str = "auto"                # --live auto|yes|no (io.sources.live_request)
     profile: bool = False             # time every stage into profile.json (app/profile.py)
+    cv_threads: int = 1               # OpenCV's threads during the run (0: its default)
     warn: Callable[[str], None] = _warn
 
 
@@ -95,15 +97,20 @@ class TrackJob:
         self.stopped_by: str | None = None   # why the run ended (None while it runs)
         self.error: str | None = None
         self.times = profile.StageTimes() if opts.profile else None   # --profile
+        self._wanted: set[int] = set()   # frames sampled for the background estimate
 
     # ------------------------------------------------------------------ running
     def run(self) -> dict[str, Any]:
         """Track the whole source; returns the summary (also on interruption or a lost
         source, then re-raised)."""
+        start = profile.now()
+        with opencv_threads(self.opts.cv_threads):
+            return self._run(start)
+
+    def _run(self, start: profile.Timing) -> dict[str, Any]:
         from vtrack.vision.detect import MotionDetector
         from vtrack.io.video import VideoReader
 
-        start = profile.now()
         self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
                                   reconnect_seconds=self.opts.reconnect_seconds,
                                   live=self.opts.live)
@@ -125,11 +132,11 @@ class TrackJob:
                 else None
             detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height,
                                       self.info.fps, roi)
-            # a second read of the start: a file, or a stream of known length (a file on
-            # a web server); a live stream read every frame (--live no) has no start to
-            # read again, and a camera may not open twice
-            if not self.reader.live and (self.source.is_file or self.info.frame_count):
-                with self._stage(profile.BACKGROUND):
+            self._wanted = self._background_sample_numbers(detector)
+            if self._wanted and not self._read_once(detector):
+                # a second read of the start, for a run that needs the full frames later
+                # or would keep too many frames while reading ahead (app/readonce.py)
+                with self._stage(profile.BACKGROUND, outside_loop=True):
                     detector.initialise(self._background_samples())
             tracker = Tracker(self.cfg.tracker, self.info.width, self.info.height,
                               self.info.fps)
@@ -194,27 +201,44 @@ class TrackJob:
     def _frames(self, detector: Any, tracker: Tracker) -> Iterator[Iterator[tuple[Any, Any]]]:
         """(frame, foreground) pairs: `segmented` (the image stages of the next frame in a
         worker thread), or with --profile every stage timed, all in this thread."""
-        if self.times is None:
-            # closing: the worker stops with the loop, also when the loop body raises
-            with contextlib.closing(segmented(self.reader, detector)) as frames:
-                yield frames
-            return
-        with profile.instrumented(detector, tracker, self.times):
-            yield ((frame, detector.segment(frame.image))
-                   for frame in self.times.iterate(profile.DECODE, self.reader))
+        source: Iterable[Any] = self.reader
+        if self.times is not None:
+            source = self.times.iterate(profile.DECODE, source)
+        with contextlib.ExitStack() as stack:
+            if self.times is not None:
+                stack.enter_context(profile.instrumented(detector, tracker, self.times))
+            if self._wanted and self._read_once(detector):
+                frames = read_once(source, detector, self._wanted,
+                                   lambda: self._stage(profile.BACKGROUND))
+            else:
+                frames = ((frame, False) for frame in source)
+            if self.times is None:
+                # closing: the worker stops with the loop, also when the loop body raises
+                yield stack.enter_context(contextlib.closing(segmented(frames, detector)))
+            else:
+                yield ((frame, detector.segment(frame.image, prepared))
+                       for frame, prepared in frames)
 
-    def _stage(self, name: str) -> contextlib.AbstractContextManager[None]:
-        """With --profile, the block's wall time added to stage `name`."""
-        return contextlib.nullcontext() if self.times is None else self.times.stage(name)
+    @contextlib.contextmanager
+    def _stage(self, name: str, outside_loop: bool = False) -> Iterator[None]:
+        """With --profile, the block's wall time added to stage `name` (`outside_loop`:
+        and not to the start-up, the run's wall time outside the frame loop)."""
+        if self.times is None:
+            yield
+            return
+        t0 = time.perf_counter()
+        with self.times.stage(name):
+            yield
+        if outside_loop:
+            self.times.seconds[profile.START] -= time.perf_counter() - t0
 
     def _profile(self, start: profile.Timing) -> dict[str, Any]:
         """The stage table of the run that began at `start` (its decoders are closed);
-        "start-up and close" is the wall time outside the frame loop and the background
-        estimate."""
+        "start-up and close" is the wall time outside the frame loop and the stages timed
+        before it (a second read's background estimate)."""
         assert self.times is not None
         run = profile.now() - start
-        outside = run.wall - self.times.seconds.get(profile.BACKGROUND, 0.0)
-        self.times.seconds[profile.START] += outside
+        self.times.seconds[profile.START] += run.wall
         return profile.report(self.times, self.frames, run)
 
     def _finish(self, parts: list[Any]) -> dict[str, Any]:
@@ -241,24 +265,36 @@ class TrackJob:
             sinks.append(self.detections)
         return sinks
 
+    def _background_sample_numbers(self, detector: Any) -> set[int]:
+        """The numbers of the frames the detector's background is estimated from
+        (readonce.sample_numbers): none for a live source (a live stream read every frame
+        (--live no) has no known start either), else those of a file or a stream of known
+        length (a file on a web server)."""
+        from vtrack.app.readonce import sample_numbers
+
+        if self.reader.live or not (self.source.is_file or self.info.frame_count):
+            return set()
+        cfg = self.cfg.detector
+        return sample_numbers(self.info.fps, self.info.frame_count, self.opts.max_frames,
+                              cfg.init_background_seconds, cfg.init_background_samples)
+
+    def _read_once(self, detector: Any) -> bool:
+        """Whether the background's samples come from the tracking's own read
+        (readonce.read_once): when no output needs the full frames the detector's look-ahead
+        drops, and that look-ahead fits in memory."""
+        from vtrack.app.readonce import fits
+
+        full_frames = self.opts.save_frames or self.opts.save_video or self.opts.rerun \
+            or self.opts.rerun_spawn
+        return not full_frames and fits(self._wanted, detector.prepare.size)
+
     def _background_samples(self) -> Iterator[Any]:
-        """Frames sampled evenly over the first `init_background_seconds` of a source not
-        read live (a second, supervised read of its start that hands over only the sampled
-        frames), for the detector's background. A file that fails here gives what was read: the
-        main read reports the failure."""
+        """The frames numbered in `self._wanted` from a second, supervised read of the
+        source's start that hands over only those frames. A file that fails here gives what
+        was read: the main read reports the failure."""
         from vtrack.io.video import VideoReader
 
-        cfg = self.cfg.detector
-        n = round(cfg.init_background_seconds * self.info.fps)
-        if self.info.frame_count:
-            n = min(n, self.info.frame_count)
-        if self.opts.max_frames:
-            n = min(n, self.opts.max_frames)
-        if n < cfg.init_background_samples:
-            return
-        stride = n / cfg.init_background_samples
-        wanted = {1 + int(k * stride) for k in range(cfg.init_background_samples)}
-        with VideoReader(self.source, keep=wanted, live="no",
+        with VideoReader(self.source, keep=self._wanted, live="no",
                          reconnect_seconds=self.opts.reconnect_seconds) as reader:
             try:
                 for frame in reader:
@@ -354,8 +390,29 @@ class TrackJob:
         return summary
 
 
-def segmented(frames: Iterable[Any], detector: Any) -> Iterator[tuple[Any, Any]]:
-    """(frame, detector.segment(frame.image)) for each frame, in order. The image stages
+@contextlib.contextmanager
+def opencv_threads(n: int) -> Iterator[None]:
+    """OpenCV's thread pool at `n` threads inside the block (0: unchanged). The pipeline
+    keeps the cores busy with its own threads (the decoder process, the image stages'
+    worker, the tracking); OpenCV's pool on top of them costs ~1 ms of CPU a frame at
+    1280x720 for no gain in wall time (docs/RESULTS.md, Speed)."""
+    if n <= 0:
+        yield
+        return
+    import cv2
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(n)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
+
+
+def segmented(frames: Iterable[tuple[Any, bool]], detector: Any
+              ) -> Iterator[tuple[Any, Any]]:
+    """(frame, detector.segment(frame.image, prepared)) for each (frame, prepared) of
+    `frames`, in order. The image stages
     of a frame run in a worker thread while the caller handles the frame before it (they
     need no track state; OpenCV releases the GIL): one frame of latency, the same results.
     A source that fails after some frames (InputError) still gives the frame in hand
@@ -364,8 +421,8 @@ def segmented(frames: Iterable[Any], detector: Any) -> Iterator[tuple[Any, Any]]
         pending: tuple[Any, Future] | None = None
         failure: InputError | None = None
         try:
-            for frame in frames:
-                ahead = (frame, pool.submit(detector.segment, frame.image))
+            for frame, prepared in frames:
+                ahead = (frame, pool.submit(detector.segment, frame.image, prepared))
                 if pending is not None:
                     yield pending[0], pending[1].result()
                 pending = ahead

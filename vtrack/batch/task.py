@@ -111,16 +111,13 @@ def _process(task: VideoTask) -> dict:
             return row(task, "interrupted")
         _running[ident] = task.batch_id
     try:
-        import cv2
-
         from vtrack.errors import InputError
         from vtrack.app.track import TrackOptions, track_video
 
-        if task.cv_threads > 0:
-            cv2.setNumThreads(task.cv_threads)
         opts = TrackOptions(save_frames=task.save_frames, save_video=task.save_video,
                             rerun=str(Path(task.out_abs) / "tracks.rrd") if task.rerun else None,
-                            max_frames=task.max_frames, progress=False)
+                            max_frames=task.max_frames, progress=False,
+                            cv_threads=task.cv_threads)
         try:
             summary = track_video(task.video_abs, task.out_abs, task.cfg, opts)
         except InputError as exc:

@@ -284,14 +284,15 @@ class MotionDetector:
         """Frames seen so far."""
         return self.background.frames
 
-    def initialise(self, images: Iterable[np.ndarray]) -> None:
+    def initialise(self, images: Iterable[np.ndarray], prepared: bool = False) -> None:
         """Start the background model from `images` (frames sampled across the first
-        seconds of the video, aligned onto the stabiliser's reference): their median (with
+        seconds of the video, aligned onto the stabiliser's reference; `prepared`: already
+        at the detection resolution, `prepare`d): their median (with
         `init_background_support`, their mode where few of them are near the median:
         background.estimate_background); detection then starts with the first frame."""
         samples = []
         for image in images:
-            small = self.prepare(image)
+            small = image if prepared else self.prepare(image)
             if self.stabiliser is not None:
                 small = self.stabiliser.align(small)
             samples.append(small)
@@ -311,12 +312,12 @@ class MotionDetector:
         `locate(segment(image), predicted)`."""
         return self.locate(self.segment(image), predicted)
 
-    def segment(self, image: np.ndarray) -> Foreground:
+    def segment(self, image: np.ndarray, prepared: bool = False) -> Foreground:
         """The image stages (prepare, stabilise, gain, MOG2, shadows, shift tolerance,
         morphology, motion map) of the next frame, in frame order; they need no track
-        state."""
+        state. `prepared`: `image` is already `prepare`d (and the detector's to keep)."""
         cfg = self.cfg
-        small = self.prepare(image)
+        small = image if prepared else self.prepare(image)
         motion = IDENTITY
         if self.stabiliser is not None:
             small, m = self.stabiliser(small)
@@ -341,7 +342,7 @@ class MotionDetector:
         self.foreground = self.clean(fg)
         moving = None
         if self.motion is not None:
-            moving = self.motion(small if small is not image else image.copy())
+            moving = self.motion(small if prepared or small is not image else image.copy())
         learning = self.frames <= cfg.warmup_frames and not self.background.primed
         return Foreground(self.foreground, raw, moving, motion, self._camera, learning,
                           held_boxes)

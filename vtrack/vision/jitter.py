@@ -68,18 +68,25 @@ class ShiftTolerance:
 
     def _blends(self, colours: np.ndarray, background: np.ndarray, ys: np.ndarray,
                 xs: np.ndarray) -> np.ndarray:
-        """(K,) whether each colour (K, 3) lies within the tolerance of the per-channel
-        interval between two 4-adjacent background pixels of the window around (ys, xs)
-        (image edges replicated)."""
+        """(K,) whether each colour c (K, 3) lies within the tolerance t of the per-channel
+        interval between two 4-adjacent background pixels a, b of the window around
+        (ys, xs) (image edges replicated): min(a, b) - t <= c <= max(a, b) + t in every
+        channel, i.e. in no channel are both a < c - t or both b > c + t. Each window
+        pixel's six such flags (below / above, per channel) are packed into one byte, so a
+        pair misses the colour where the AND of its bytes is non-zero."""
         h, w = background.shape[:2]
         d = np.arange(-self.radius, self.radius + 1)
         rows = np.clip(ys[:, None] + d, 0, h - 1)
         cols = np.clip(xs[:, None] + d, 0, w - 1)
-        win = background[rows[:, :, None], cols[:, None, :]].astype(np.int16)  # K,n,n,3
-        c = colours.astype(np.int16)[:, None, None, :]
-        t = self.tolerance
-        found = np.zeros(len(ys), dtype=bool)
-        for a, b in ((win[:, :, :-1], win[:, :, 1:]), (win[:, :-1, :], win[:, 1:, :])):
-            inside = (c >= np.minimum(a, b) - t) & (c <= np.maximum(a, b) + t)
-            found |= inside.all(axis=3).any(axis=(1, 2))
+        win = background[rows[:, :, None], cols[:, None, :]]          # K,n,n,3 uint8
+        c = colours.astype(np.int16)
+        # saturated bounds: where c - t < 0 no pixel lies below it, nor above c + t > 255
+        low = np.clip(c - self.tolerance, 0, 255).astype(np.uint8)[:, None, None, :]
+        high = np.clip(c + self.tolerance, 0, 255).astype(np.uint8)[:, None, None, :]
+        below = (win < low).view(np.uint8)
+        above = (win > high).view(np.uint8)
+        flags = (below[..., 0] | below[..., 1] << 1 | below[..., 2] << 2
+                 | above[..., 0] << 3 | above[..., 1] << 4 | above[..., 2] << 5)
+        found = ((flags[:, :, :-1] & flags[:, :, 1:]) == 0).any(axis=(1, 2))
+        found |= ((flags[:, :-1, :] & flags[:, 1:, :]) == 0).any(axis=(1, 2))
         return found

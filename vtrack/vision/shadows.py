@@ -93,7 +93,11 @@ def _long(mask: np.ndarray, length: int) -> np.ndarray:
     side), as a uint8 mask; labelled within the box around the mask's pixels."""
     x, y, w, h = cv2.boundingRect(mask)
     box = (slice(y, y + h), slice(x, x + w))
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(mask[box], connectivity=8)
+    # 16-bit labels (2-4x faster than 32-bit) whenever they cannot overflow: there are no
+    # more pieces than pixels
+    ltype = cv2.CV_16U if cv2.countNonZero(mask[box]) < 1 << 16 else cv2.CV_32S
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(mask[box], connectivity=8,
+                                                           ltype=ltype)
     keep = (np.maximum(stats[:, 2], stats[:, 3]) >= length).astype(np.uint8)
     keep[0] = 0
     out = np.zeros_like(mask)
