@@ -66,6 +66,12 @@ class TrackerConfig:
         "(0: at once; a track often starts on part of a vehicle coming into view)"))
     size_shrink_seconds: float = field(default=1.0, metadata=_h(
         "detections smaller than the size gate for this long restart the size from them, s"))
+    shrink_unexplained: bool = field(default=False, metadata=_h(
+        "a detected side smaller than the size gate restarts the size at once (not after "
+        "`size_shrink_seconds`) when nothing shows the detection to be a partial view: not "
+        "anchored on a static occluder's edge, not cut by the border, overlapping no other "
+        "track's box (sizes.py); for detectors whose boxes are whole. Off: it costs real "
+        "counts on MOG2's blobs (docs/TRACKER.md)"))
     init_size_rate_sigma: float = field(default=0.05, metadata=_h(
         "prior std of a new track's relative size rate d ln w/dt, 1/s"))
     confirm_seconds: float = field(default=0.3, metadata=_h(
@@ -118,6 +124,12 @@ class TrackerConfig:
     gap_follow_share: float = field(default=0.5, metadata=_h(
         "a gap between two pieces that has moved at least this share of the track's travel "
         "since it appeared moved with the vehicles: several vehicles, not an occluder's gap"))
+    whole_piece: bool = field(default=False, metadata=_h(
+        "of several detections in one confirmed track's box, one that is by itself the "
+        "vehicle where it is predicted (both sides in the size gate, IoU >= `blob_fit_iou` "
+        "with the predicted box, not cut by the border) makes the others other vehicles: "
+        "nothing is joined (fragments.py); for detectors that give whole boxes of vehicles "
+        "that overlap. Off: it costs real counts on MOG2's blobs (docs/TRACKER.md)"))
     nested_share: float = field(default=0.9, metadata=_h(
         "a piece lying this share of its area within another is a part of it (a car's "
         "windows in its body): no gap between them"))
