@@ -136,6 +136,10 @@ class TrackerConfig:
     duplicate_overlap: float = field(default=0.5, metadata=_h(
         "tracks whose centres share one detection and whose boxes overlap by more than this "
         "share of the smaller box follow one vehicle: the younger ones are duplicates"))
+    duplicate_seconds: float = field(default=0.0, metadata=_h(
+        "a duplicate track is deleted once it has been one on every frame for this long, s "
+        "(0: at once); two vehicles whose boxes overlap share one detection only while the "
+        "other's is missing, two tracks on one vehicle share it on every frame"))
     small_in_blob: float = field(default=0.25, metadata=_h(
         "the oldest of such tracks whose box covers under this share of the shared blob "
         "follows a smaller vehicle seen over a larger one (a car beside a truck)"))
@@ -186,6 +190,6 @@ class TrackerConfig:
         if not 0 < self.gap_changed_share <= 1:
             raise ValueError("tracker.gap_changed_share must be in (0, 1]")
         for name in ("confirm_motion", "edge_margin", "size_grow_seconds", "stand_speed",
-                     "split_hold_seconds"):
+                     "split_hold_seconds", "duplicate_seconds"):
             if getattr(self, name) < 0:
                 raise ValueError(f"tracker.{name} must be >= 0")
