@@ -1,6 +1,7 @@
-"""The two options for detectors that give whole boxes (docs/TRACKER.md, "Whole boxes"):
-`whole_piece` (fragments.py) and `shrink_unexplained` (sizes.py), each against the default
-on one small case: a vehicle tracked alone, then the frame that tells them apart."""
+"""The options for detectors that give whole boxes (docs/TRACKER.md, "Whole boxes"):
+`whole_piece` (fragments.py), `shrink_unexplained` (sizes.py) and `duplicate_seconds`
+(lifecycle.py), each against the default on one small case: vehicles tracked a while, then
+the frame that tells them apart."""
 
 from __future__ import annotations
 
@@ -76,3 +77,24 @@ def test_shrink_unexplained_holds_a_box_another_track_overlaps() -> None:
     out = tracker.step(21, 20 / FPS, centre(small), small)
     first = out.ids == out.ids.min()
     assert out.boxes[first, 2][0] > 90.0
+
+
+def _ids_after_a_dropped_box(duplicate_seconds: float) -> int:
+    """Confirmed tracks after two vehicles whose boxes overlap (a car behind another, as
+    whole boxes show them) drive side by side, and the rear one's box is missing for one
+    frame while its centre lies in the front one's box."""
+    cfg = AppConfig().tracker
+    cfg.duplicate_seconds = duplicate_seconds
+    tracker = Tracker(cfg, W, H, FPS)
+    for n in range(25):
+        boxes = np.array([[100.0 + 5 * n, 120.0, 100.0, 100.0],
+                          [130.0 + 5 * n, 110.0, 100.0, 100.0]])
+        if n == 20:
+            boxes = boxes[:1]
+        out = tracker.step(n + 1, n / FPS, centre(boxes), boxes)
+    return len(out.ids)
+
+
+def test_duplicate_seconds_keeps_a_vehicle_whose_box_was_dropped_once() -> None:
+    assert _ids_after_a_dropped_box(0.0) == 1     # deleted as the front one's duplicate
+    assert _ids_after_a_dropped_box(0.1) == 2
