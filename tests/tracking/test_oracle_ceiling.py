@@ -53,3 +53,29 @@ def test_tracker_holds_its_ceiling(tmp_path: Path, scene: str, noise: float, dro
           f"(floors {mota - MARGIN:.3f} / {idf1 - MARGIN:.3f})")
     assert s["mota"] >= mota - MARGIN
     assert s["idf1"] >= idf1 - MARGIN
+
+
+# The same with the options for whole boxes on ([tracker] whole_piece, shrink_unexplained;
+# docs/TRACKER.md): (MOTA, IDF1) measured at their commit.
+WHOLE_BOXES = {
+    ("mast", 0.0, 0.0): (0.992, 0.990),
+    ("side", 0.05, 0.1): (0.924, 0.922),
+    ("junction", 0.05, 0.1): (0.970, 0.985),
+}
+
+
+@pytest.mark.parametrize("scene,noise,drop", sorted(WHOLE_BOXES))
+def test_whole_box_options_hold_their_ceiling(tmp_path: Path, scene: str, noise: float,
+                                              drop: float) -> None:
+    render_default(tmp_path, scene, frames=FRAMES, width=W, height=H, fps=FPS, seed=0)
+    gt = read_mot(tmp_path / "gt.csv", max_cols=11)
+    dets = oracle_detections(gt, noise, drop, np.random.default_rng(0))
+    cfg = AppConfig().tracker
+    cfg.whole_piece = cfg.shrink_unexplained = True
+    s = evaluate_arrays(unmoved_ignored(gt), tracked_rows(Tracker(cfg, W, H, FPS), dets,
+                                                         FRAMES, FPS))
+    mota, idf1 = WHOLE_BOXES[scene, noise, drop]
+    print(f"{scene} noise {noise} drop {drop}, whole-box options: MOTA {s['mota']:.3f} "
+          f"IDF1 {s['idf1']:.3f}")
+    assert s["mota"] >= mota - MARGIN
+    assert s["idf1"] >= idf1 - MARGIN

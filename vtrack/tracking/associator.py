@@ -53,7 +53,7 @@ class Associator:
         self.cfg = cfg
         self.width, self.height = width, height
         self.gate = -2.0 * math.log1p(-cfg.gate_probability)  # chi-square quantile, 2 dof
-        self.fragments = FragmentJoiner(cfg)
+        self.fragments = FragmentJoiner(cfg, width, height)
 
     def associate(self, tracks: TrackTable, gaps: GapColumns, t: float, centers: np.ndarray,
                   boxes: np.ndarray, changed: ChangedShare | None = None) -> Association:

@@ -49,6 +49,7 @@ from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.estimation.models import WienerVelocity
 
 if TYPE_CHECKING:
+    from vtrack.tracking.config import TrackerConfig
     from vtrack.tracking.table import TrackTable
 
 OWN = 9  # detections whose median gives a vehicle's own size (`own_size`)
@@ -68,6 +69,12 @@ class BoxSizeFilter:
         self.tau = rate_seconds
         self.gate = float(ndtri((1 + gate_probability) / 2)) ** 2   # chi-square, 1 dof
         self.reset_seconds = reset_seconds
+
+    @classmethod
+    def from_config(cls, cfg: TrackerConfig) -> BoxSizeFilter:
+        """The filter with the [tracker] size parameters."""
+        return cls(cfg.size_psd, cfg.size_sigma, cfg.size_rate_seconds,
+                   cfg.size_gate_probability, (cfg.size_grow_seconds, cfg.size_shrink_seconds))
 
     def _var(self, sizes: np.ndarray) -> np.ndarray:
         """Variance of a detected ln size: the relative std plus one pixel of outline."""
@@ -97,6 +104,12 @@ class BoxSizeFilter:
         F[[2, 3], [2, 3]] = np.exp(-dt / self.tau)
         return kf_predict(s, Ps, F, self.model.Q(dt))
 
+    def in_gate(self, s: np.ndarray, Ps: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+        """(K, 2) whether detected sides `sizes` (K, 2) lie within the size gate of the
+        states (s, Ps): nu^2 <= gate (P_ln + var), nu = ln z - ln s (1 dof)."""
+        nu = np.log(np.maximum(sizes, 1.0)) - s[:, :2]
+        return nu**2 <= self.gate * (Ps[:, [0, 1], [0, 1]] + self._var(sizes))
+
     def px_var(self, s: np.ndarray, Ps: np.ndarray) -> np.ndarray:
         """(K, 2) variance of the box sides in px^2 (first order: (w sigma_ln w)^2)."""
         return np.exp(2 * s[:, :2]) * Ps[:, [0, 1], [0, 1]]
@@ -115,7 +128,7 @@ class BoxSizeFilter:
         z = np.log(np.maximum(sizes, 1.0))
         var = self._var(sizes)
         nu = z - s[:, :2]
-        whole = (nu**2 <= self.gate * (Ps[:, [0, 1], [0, 1]] + var)) & ~cut
+        whole = self.in_gate(s, Ps, sizes) & ~cut
         # The vehicle's own size at this place (nan: not known): a detected side of that
         # size, within the scatter of the vehicle's own detections and a pixel of outline,
         # is the whole vehicle's even where the estimate disagrees (the estimate is what is

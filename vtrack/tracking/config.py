@@ -66,6 +66,12 @@ class TrackerConfig:
         "(0: at once; a track often starts on part of a vehicle coming into view)"))
     size_shrink_seconds: float = field(default=1.0, metadata=_h(
         "detections smaller than the size gate for this long restart the size from them, s"))
+    shrink_unexplained: bool = field(default=False, metadata=_h(
+        "a detected side smaller than the size gate restarts the size at once (not after "
+        "`size_shrink_seconds`) when nothing shows the detection to be a partial view: not "
+        "anchored on a static occluder's edge, not cut by the border, overlapping no other "
+        "track's box (sizes.py); for detectors whose boxes are whole. Off: it costs real "
+        "counts on MOG2's blobs (docs/TRACKER.md)"))
     init_size_rate_sigma: float = field(default=0.05, metadata=_h(
         "prior std of a new track's relative size rate d ln w/dt, 1/s"))
     confirm_seconds: float = field(default=0.3, metadata=_h(
@@ -118,12 +124,22 @@ class TrackerConfig:
     gap_follow_share: float = field(default=0.5, metadata=_h(
         "a gap between two pieces that has moved at least this share of the track's travel "
         "since it appeared moved with the vehicles: several vehicles, not an occluder's gap"))
+    whole_piece: bool = field(default=False, metadata=_h(
+        "of several detections in one confirmed track's box, one that is by itself the "
+        "vehicle where it is predicted (both sides in the size gate, IoU >= `blob_fit_iou` "
+        "with the predicted box, not cut by the border) makes the others other vehicles: "
+        "nothing is joined (fragments.py); for detectors that give whole boxes of vehicles "
+        "that overlap. Off: it costs real counts on MOG2's blobs (docs/TRACKER.md)"))
     nested_share: float = field(default=0.9, metadata=_h(
         "a piece lying this share of its area within another is a part of it (a car's "
         "windows in its body): no gap between them"))
     duplicate_overlap: float = field(default=0.5, metadata=_h(
         "tracks whose centres share one detection and whose boxes overlap by more than this "
         "share of the smaller box follow one vehicle: the younger ones are duplicates"))
+    duplicate_seconds: float = field(default=0.0, metadata=_h(
+        "a duplicate track is deleted once it has been one on every frame for this long, s "
+        "(0: at once); two vehicles whose boxes overlap share one detection only while the "
+        "other's is missing, two tracks on one vehicle share it on every frame"))
     small_in_blob: float = field(default=0.25, metadata=_h(
         "the oldest of such tracks whose box covers under this share of the shared blob "
         "follows a smaller vehicle seen over a larger one (a car beside a truck)"))
@@ -174,6 +190,6 @@ class TrackerConfig:
         if not 0 < self.gap_changed_share <= 1:
             raise ValueError("tracker.gap_changed_share must be in (0, 1]")
         for name in ("confirm_motion", "edge_margin", "size_grow_seconds", "stand_speed",
-                     "split_hold_seconds"):
+                     "split_hold_seconds", "duplicate_seconds"):
             if getattr(self, name) < 0:
                 raise ValueError(f"tracker.{name} must be >= 0")

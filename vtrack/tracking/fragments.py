@@ -22,8 +22,9 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from vtrack.boxes import centre, overlap_of_smaller
+from vtrack.boxes import centre, on_border, overlap_of_smaller, paired_iou
 from vtrack.tracking.association import points_in_boxes
+from vtrack.tracking.box_size import BoxSizeFilter
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.columns import Columns
 
@@ -71,8 +72,10 @@ class Fragments:
 class FragmentJoiner:
     """Joins or splits the pieces in each confirmed track's box (module docstring)."""
 
-    def __init__(self, cfg: TrackerConfig) -> None:
+    def __init__(self, cfg: TrackerConfig, width: int, height: int) -> None:
         self.cfg = cfg
+        self.width, self.height = width, height
+        self.size_gate = BoxSizeFilter.from_config(cfg)
 
     def join(self, tracks: TrackTable, gaps: GapColumns, track_boxes: np.ndarray, t: float,
              centers: np.ndarray, boxes: np.ndarray, changed: ChangedShare | None
@@ -95,6 +98,8 @@ class FragmentJoiner:
             boxes = boxes.copy()
             for b in np.flatnonzero(per_box >= 2):
                 track, parts = conf[b], di[bi == b]
+                if cfg.whole_piece and self._one_is_whole(tracks, track, track_boxes[track], boxes[parts]):
+                    continue
                 held[track] = True
                 x0 = boxes[parts, :2].min(axis=0)
                 x1 = (boxes[parts, :2] + boxes[parts, 2:]).max(axis=0)
@@ -110,6 +115,19 @@ class FragmentJoiner:
         holding = gaps.gap_road & (t - gaps.gap_seen <= cfg.split_hold_seconds + 1e-9)
         gaps.gap_t[(~held & ~holding) | split] = np.nan
         return Fragments(centers, boxes, split, gaps)
+
+    def _one_is_whole(self, tracks: TrackTable, track: int, predicted: np.ndarray,
+                      pieces: np.ndarray) -> bool:
+        """Whether one of `pieces` (x, y, w, h) is by itself the track's vehicle where it
+        is predicted (`predicted`, x, y, w, h): both its sides within the size gate
+        (box_size.py), none cut by the image border, and IoU with the predicted box at least
+        `blob_fit_iou`. That piece is the vehicle and the others are other vehicles, not
+        its parts (whole boxes, as a good detector gives, of vehicles that overlap)."""
+        k = np.full(len(pieces), track)
+        fits = self.size_gate.in_gate(tracks.s[k], tracks.Ps[k], pieces[:, 2:])
+        cut = on_border(pieces, self.width, self.height).any(axis=(1, 2))
+        there = paired_iou(pieces, predicted[None]) >= self.cfg.blob_fit_iou
+        return bool(np.any(fits.all(axis=1) & ~cut & there))
 
     def _gap_moved(self, tracks: TrackTable, gaps: GapColumns, track: int, t: float,
                    pieces: np.ndarray, changed: ChangedShare | None) -> bool:

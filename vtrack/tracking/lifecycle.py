@@ -15,13 +15,15 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from vtrack.boxes import edges
+from vtrack.boxes import clip, edges, from_centre
 from vtrack.tracking.association import points_in_boxes
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.columns import Columns
 
 if TYPE_CHECKING:
     from vtrack.tracking.table import TrackTable
+
+MIN_INSIDE_SHARE = 0.25  # a coasted box keeps this share of its area in the image
 
 
 @dataclass
@@ -34,10 +36,11 @@ class LifeColumns(Columns):
     standing: np.ndarray   # (N,) a standing vehicle held without detections (record_hits)
     id: np.ndarray         # (N,) public id, 0 while tentative
     uid: np.ndarray        # (N,) internal id, unique for the run
+    dup_t: np.ndarray      # (N,) since when it has shared an older track's detection (nan)
 
     LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {
         "origin": ((4,), float), "last_box": ((4,), float), "hitmask": ((), np.int64),
-        "standing": ((), bool), "id": ((), int), "uid": ((), int)}
+        "standing": ((), bool), "id": ((), int), "uid": ((), int), "dup_t": ((), float)}
 
     def warp(self, m: np.ndarray) -> None:
         """Box corners map by m (the boxes stay axis-aligned)."""
@@ -75,7 +78,8 @@ class Initiator:
         uid = np.arange(self.next_uid, self.next_uid + k)
         self.next_uid += k
         return LifeColumns(origin, origin.copy(), np.zeros(k, dtype=np.int64),
-                           np.zeros(k, dtype=bool), np.zeros(k, dtype=int), uid)
+                           np.zeros(k, dtype=bool), np.zeros(k, dtype=int), uid,
+                           np.full(k, np.nan))
 
 
 def record_hits(tracks: TrackTable, hit: np.ndarray, window: int, stand_speed: float
@@ -97,7 +101,8 @@ class Deleter:
     """Decides which tracks end this frame: a track whose whole predicted box has left the
     image (`edge_margin` box scales beyond it), one past its coasting limit
     (`max_coast_seconds`; `max_stand_seconds` while standing; `tentative_coast_seconds`
-    before confirmation) and the duplicates of older tracks (associator.py)."""
+    before confirmation) and the duplicates of older tracks (associator.py) once they have
+    been duplicates on every frame for `duplicate_seconds`."""
 
     def __init__(self, cfg: TrackerConfig, width: int, height: int) -> None:
         self.cfg = cfg
@@ -107,19 +112,38 @@ class Deleter:
              ) -> tuple[np.ndarray, np.ndarray]:
         """(inside, alive) (N,) each: whether part of each predicted box is still in the
         image, and whether the track is within its coasting limit and not one of the
-        `duplicates` (indices). A track is kept where both hold."""
+        `duplicates` (indices) for `duplicate_seconds` in a row (recorded in `dup_t`). A
+        track is kept where both hold."""
         cfg = self.cfg
         m = cfg.edge_margin * tracks.scale[:, None] + tracks.size / 2
         x, y = tracks.x[:, 0], tracks.x[:, 1]
         inside = ((x >= -m[:, 0]) & (x <= self.width + m[:, 0])
                   & (y >= -m[:, 1]) & (y <= self.height + m[:, 1]))
         lost_for = t - tracks.hist_t[:, 0]
+        inside &= ~((lost_for > 1e-9) & self._leaving(tracks))
         limit = np.where(tracks.id > 0, np.where(tracks.standing, cfg.max_stand_seconds,
                                                  cfg.max_coast_seconds),
                          cfg.tentative_coast_seconds)
         alive = lost_for <= limit + 1e-9
-        alive[duplicates] = False
+        shared = np.zeros(len(tracks), dtype=bool)
+        shared[duplicates] = True
+        tracks.dup_t = np.where(shared, np.fmin(tracks.dup_t, t), np.nan)
+        alive[shared & (t - tracks.dup_t >= cfg.duplicate_seconds - 1e-9)] = False
         return inside, alive
+
+
+    def _leaving(self, tracks: TrackTable) -> np.ndarray:
+        """(N,) tracks whose predicted box keeps under MIN_INSIDE_SHARE of its area in the
+        image (its centre is then outside) and whose velocity points further out on an axis
+        where the centre is outside: a vehicle driving out of the picture. Coasting, such a
+        track has left: only its prediction says it is still there, and a vehicle that
+        enters where it left would take it up."""
+        predicted = from_centre(tracks.x[:, :2], tracks.size)
+        share = (np.prod(clip(predicted, self.width, self.height)[:, 2:], axis=1)
+                 / np.prod(tracks.size, axis=1))
+        p, v = tracks.x[:, :2], tracks.x[:, 2:4]
+        out = ((p < 0) & (v < 0)) | ((p > [self.width, self.height]) & (v > 0))
+        return (share < MIN_INSIDE_SHARE) & out.any(axis=1)
 
 
 class Confirmer:

@@ -48,11 +48,11 @@ import numpy as np
 
 from vtrack.boxes import from_centre, in_image
 from vtrack.estimation.kalman import smooth_gap
+from vtrack.tracking.lifecycle import MIN_INSIDE_SHARE
 from vtrack.tracking.table import TrackTable
 
 ROW_COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf")  # conf 1 = detected, < 1 = coasted
 ON_COURSE_IOU = 0.5  # a re-acquisition this close to the prediction confirms the coasted rows
-MIN_INSIDE_SHARE = 0.25  # a coasted row keeps this share of its predicted box in the image
 
 
 class State(Enum):

@@ -9,7 +9,8 @@ It holds the box size filter (box_size.py) and the scene's scale field (scale_fi
    the scale field; not from an anchored view), then this detection joins that memory
    (`remember_size`) unless cut by the image border or anchored;
 3. a receding vehicle detected centred inside its predicted box (`shrunk`) shows the whole
-   vehicle: its size starts again from it;
+   vehicle: its size starts again from it; with `shrink_unexplained`, so does any smaller
+   detection that nothing shows to be a partial view (`_unexplained`);
 4. the size filter's gated update with those three (BoxSizeFilter.update), which returns
    the sides that showed the whole vehicle;
 5. a whole detection of a confirmed track that overlaps no other track's box teaches the
@@ -81,9 +82,7 @@ class Sizes:
     def __init__(self, cfg: TrackerConfig, width: int, height: int) -> None:
         self.cfg = cfg
         self.width, self.height = width, height
-        self.filter = BoxSizeFilter(cfg.size_psd, cfg.size_sigma, cfg.size_rate_seconds,
-                                    cfg.size_gate_probability,
-                                    (cfg.size_grow_seconds, cfg.size_shrink_seconds))
+        self.filter = BoxSizeFilter.from_config(cfg)
         self.field = ScaleField(width, height)
 
     def initial(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -142,6 +141,8 @@ class Sizes:
         receding = np.all(rates < 0, axis=1)
         smaller = ((shrunk(tracks.x[idx, :2], size, boxes, sigma) & receding & ~partial)
                    [:, None] & ~cut)
+        if cfg.shrink_unexplained:
+            smaller |= self._unexplained(tracks, idx, boxes, partial)[:, None] & ~cut
         # A whole side is never a border-cut one (box_size.py), so `shows_whole` has no cut.
         whole = self.filter.update(tracks, idx, boxes[:, 2:], cut, t, expected, spread,  # 4
                                    smaller)
@@ -154,6 +155,15 @@ class Sizes:
             tracks.s[k], tracks.Ps[k] = s_new, Ps_new
         return SizeUpdate(whole, shows_whole, size, size_var, edges_cut)
 
+    def _unexplained(self, tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray,
+                     partial: np.ndarray) -> np.ndarray:
+        """(K,) detections (K, 4) of tracks idx that nothing shows to be a partial view:
+        not anchored (`partial`, a static occluder's edge) and overlapping no other track's
+        predicted box (a vehicle in front, or a neighbour merged). A side of such a
+        detection smaller than the size gate is the vehicle's, at once (box_size.py)."""
+        others = touches_other(boxes, idx, tracks.boxes(self.width, self.height))
+        return ~partial & ~others
+
     def _learn_scale(self, tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray) -> None:
         """Feed the scale field with whole-vehicle boxes of confirmed tracks whose box
         overlaps no other track's: a pair once the track has moved half a box scale."""
@@ -162,16 +172,7 @@ class Sizes:
         if len(idx) == 0:
             return
         all_boxes = tracks.boxes(self.width, self.height)
-        centres = centre(all_boxes)
-        # Boxes that overlap have centres within the largest diagonal (k-d tree pairs).
-        near = cKDTree(centres).query_ball_point(
-            centres[idx], float(np.hypot(all_boxes[:, 2], all_boxes[:, 3]).max()))
-        qi = np.repeat(np.arange(len(idx)), [len(n) for n in near])
-        pj = np.fromiter((j for n in near for j in n), dtype=int, count=len(qi))
-        other = pj != idx[qi]
-        qi, pj = qi[other], pj[other]
-        touching = qi[intersection(all_boxes[idx[qi]], all_boxes[pj]) > 0]
-        alone = np.bincount(touching, minlength=len(idx)) == 0
+        alone = ~touches_other(all_boxes[idx], idx, all_boxes)
         idx, boxes = idx[alone], boxes[alone]
         p = centre(boxes)
         sc = scale(boxes)
@@ -181,3 +182,20 @@ class Sizes:
         self.field.add(tracks.ref_p[idx[pair]], ref[pair], p[pair], sc[pair])
         new = ~np.isfinite(ref) | pair
         tracks.ref_p[idx[new]], tracks.ref_s[idx[new]] = p[new], sc[new]
+
+
+def touches_other(query: np.ndarray, owners: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """(K,) whether each query box (K, 4) overlaps any of `boxes` (N, 4) other than its
+    owner's (`owners` (K,), indices into boxes). Boxes that overlap have centres within the
+    sum of their half diagonals: k-d tree pairs within the largest diagonal."""
+    if len(query) == 0 or len(boxes) == 0:
+        return np.zeros(len(query), dtype=bool)
+    radius = (np.hypot(query[:, 2], query[:, 3]).max()
+              + np.hypot(boxes[:, 2], boxes[:, 3]).max()) / 2
+    near = cKDTree(centre(boxes)).query_ball_point(centre(query), float(radius))
+    qi = np.repeat(np.arange(len(query)), [len(n) for n in near])
+    pj = np.fromiter((j for n in near for j in n), dtype=int, count=len(qi))
+    other = pj != owners[qi]
+    qi, pj = qi[other], pj[other]
+    touching = qi[intersection(query[qi], boxes[pj]) > 0]
+    return np.bincount(touching, minlength=len(query)) > 0
