@@ -40,6 +40,14 @@ ABLATIONS = {
                   "(sizes.py)", "[detector]\nmin_vehicle_share = 0.15\n"),
     "no-area-cap": ("the cap on a blob's area (a quarter of the frame)",
                     "[detector]\nmax_area_fraction = 1.0\n"),
+    "group-pieces": ("(switched ON) pieces of one tracked vehicle joined in its predicted "
+                     "box (pieces.py)", "[detector]\ngroup_pieces = true\n"),
+    "area-cap-tracked": ("(switched ON) the area cap only for blobs no predicted box "
+                         "explains (pieces.py)", "[detector]\narea_cap_tracked = true\n"),
+    "split-footprint": ("(switched ON) blobs longer than two vehicles cut at their waists "
+                        "(footprint.py)", "[detector]\nsplit_footprint = true\n"),
+    "static-ghosts": ("(switched ON) foreground unchanged for 2 s dropped (ghosts.py)",
+                      "[detector]\nstatic_seconds = 2.0\n"),
     "whole-clip-background": ("(switched ON) background estimated over the whole file",
                               "[detector]\ninit_background_seconds = 600.0\n"),
     "no-split": ("merged blobs divided among predicted boxes",

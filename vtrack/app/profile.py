@@ -32,10 +32,13 @@ DETECTOR_STAGES = (   # (table name, MotionDetector attribute)
     ("standing hold (labels)", None),
     ("shadows", None),
     ("shift tolerance", "shifted"),
-    ("morphology", "clean"),
     ("motion map", "motion"),
-    ("blobs", None),
+    ("ghosts (static foreground)", "ghosts"),
+    ("morphology", "clean"),
+    ("blobs", "tests"),
+    ("pieces and large tracked blobs", "_pieces"),
     ("split merged blobs", "_split"),
+    ("footprint split", "_footprint"),
     ("standing boxes", "standing"),
 )
 MODULE_STAGES = (   # (table name, function of vtrack.vision.detect called by name)
@@ -48,8 +51,8 @@ TRACKER_STAGES = (("tracker predict", "predict"), ("tracker update", "update"))
 ORDER = (START, BACKGROUND, DECODE, *(name for name, _ in DETECTOR_STAGES),
          *(name for name, _ in TRACKER_STAGES), OUTPUTS)
 # the stages of `vtrack track`'s main thread when it overlaps the image stages (the rest)
-MAIN_THREAD = ("blobs", "split merged blobs", "standing boxes", "tracker predict",
-               "tracker update", OUTPUTS)
+MAIN_THREAD = ("blobs", "pieces and large tracked blobs", "split merged blobs",
+               "footprint split", "standing boxes", "tracker predict", "tracker update", OUTPUTS)
 UNACCOUNTED = "not accounted"
 
 

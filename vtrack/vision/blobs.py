@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -61,62 +62,80 @@ class MaskCleaner:
 
 
 class MotionMap:
-    """Integral image of the pixels whose colour changed by more than MOTION_DIFF over the
-    last MOTION_GAP frames. Colour, not grey: a red car on grey asphalt can have the
-    asphalt's grey level."""
+    """The pixels whose colour changed by more than MOTION_DIFF over the last MOTION_GAP
+    frames. Colour, not grey: a red car on grey asphalt can have the asphalt's grey level."""
 
     def __init__(self) -> None:
         self._recent: deque[np.ndarray] = deque()  # the last MOTION_GAP prepared frames
 
     def __call__(self, small: np.ndarray) -> np.ndarray | None:
-        """The integral image, or None while there is no older frame."""
+        """The changed pixels (0/1 uint8), or None while there is no older frame."""
         self._recent.append(small)
         if len(self._recent) <= MOTION_GAP:
             return None
         b, g, r = cv2.split(cv2.absdiff(small, self._recent.popleft()))
         diff = cv2.max(cv2.max(b, g), r)
-        return cv2.integral(cv2.threshold(diff, MOTION_DIFF, 1, cv2.THRESH_BINARY)[1])
+        return cv2.threshold(diff, MOTION_DIFF, 1, cv2.THRESH_BINARY)[1]
 
 
-def find_blobs(fg: np.ndarray, moving: np.ndarray | None, sx: float, sy: float,
-               min_pixels: int, min_area: float, max_area: float, min_fill: float,
-               min_motion: float, still: np.ndarray | None = None,
-               floor: Callable[[np.ndarray], np.ndarray] | None = None
-               ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
-    """Outer contours of the mask kept when their size and fill ratio (area / box area:
-    foliage blobs are ragged) look like a vehicle and, with a motion map, something inside
-    their box moved (ghosts of vehicles present at the start are static) or it holds the
-    centre of one of the `still` boxes (mask pixels: standing vehicles, hold.py). `floor`,
-    when given, maps blob centres (N, 2, mask pixels) to the smallest pixel count there
-    (sizes.SizeFloor) instead of `min_pixels`. Returns boxes
-    (K, 4) and areas (K,) mapped to full resolution by the scale factors (sx, sy), and the
-    kept contours (mask pixels).
+@dataclass(frozen=True)
+class BlobTests:
+    """What a blob must pass to be a vehicle, in mask pixels: its pixel count the noise
+    floor (`min_pixels`, or `floor` at its centre: sizes.SizeFloor), its area (the mask's
+    pixel area `unit` in the video's pixels times its count) at least `min_area` and at
+    most `max_area`, its fill ratio (count / box area: foliage blobs are ragged) at least
+    `min_fill`, and with a motion map, something inside its box changed over the last
+    frames (`min_motion` of the box: ghosts of vehicles present at the start are static)
+    or it holds the centre of one of the `still` boxes (standing vehicles, hold.py)."""
+
+    min_pixels: int
+    min_area: float
+    max_area: float
+    min_fill: float
+    min_motion: float
+    unit: float = 1.0
+    floor: Callable[[np.ndarray], np.ndarray] | None = None
+
+    def __call__(self, stats: np.ndarray, moving: np.ndarray | None,
+                 still: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """For blobs `stats` (N, 5: x, y, w, h, pixel count), whether each passes every test
+        but the area cap (N,) and whether it is under the cap (N,)."""
+        count = stats[:, 4]
+        least = (self.min_pixels if self.floor is None
+                 else self.floor(stats[:, :2] + stats[:, 2:4] / 2))
+        ok = ((count >= least) & (count * self.unit >= self.min_area)
+              & (count >= self.min_fill * stats[:, 2] * stats[:, 3]))
+        if moving is not None:
+            x0, y0, bw, bh = stats[:, :4].astype(np.int64).T
+            x1, y1 = x0 + bw, y0 + bh
+            changed = moving[y1, x1] - moving[y0, x1] - moving[y1, x0] + moving[y0, x0]
+            moved = changed >= self.min_motion * bw * bh
+            if still is not None and len(still):
+                c = still[:, :2] + still[:, 2:] / 2
+                moved |= ((c[None, :, 0] >= x0[:, None]) & (c[None, :, 0] < x1[:, None])
+                          & (c[None, :, 1] >= y0[:, None])
+                          & (c[None, :, 1] < y1[:, None])).any(1)
+            ok &= moved
+        return ok, count * self.unit <= self.max_area
+
+
+def find_blobs(fg: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """Outer contours of the mask and their stats (N, 5): bounding box x, y, w, h and
+    pixel count (mask pixels).
 
     findContours is ~30x cheaper than connectedComponentsWithStats here; a blob's pixel
     count follows from its contour polygon by Pick's theorem, A + B/2 + 1 (holes filled).
-    `moving` (an integral image) gives the changed pixels in each box in O(1).
     """
     contours, _ = cv2.findContours(fg, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    if not contours:
-        return np.zeros((0, 4)), np.zeros(0), []
     stats = np.array([(*cv2.boundingRect(c), cv2.contourArea(c) + len(c) / 2 + 1)
-                      for c in contours], dtype=np.float64)
-    x, y = stats[:, 0] * sx, stats[:, 1] * sy
-    w, h = stats[:, 2] * sx, stats[:, 3] * sy
-    area = stats[:, 4] * sx * sy
-    least = (min_pixels if floor is None
-             else floor(stats[:, :2] + stats[:, 2:4] / 2))
-    keep = ((stats[:, 4] >= least) & (area >= min_area) & (area <= max_area)
-            & (area >= min_fill * w * h))
-    if moving is not None:
-        x0, y0, bw, bh = stats[:, :4].astype(np.int64).T
-        x1, y1 = x0 + bw, y0 + bh
-        changed = moving[y1, x1] - moving[y0, x1] - moving[y1, x0] + moving[y0, x0]
-        moved = changed >= min_motion * bw * bh
-        if still is not None and len(still):
-            c = still[:, :2] + still[:, 2:] / 2
-            moved |= ((c[None, :, 0] >= x0[:, None]) & (c[None, :, 0] < x1[:, None])
-                      & (c[None, :, 1] >= y0[:, None]) & (c[None, :, 1] < y1[:, None])).any(1)
-        keep &= moved
-    kept = [c for c, k in zip(contours, keep, strict=True) if k]
-    return np.stack([x, y, w, h], axis=1)[keep], area[keep], kept
+                      for c in contours], dtype=np.float64).reshape(-1, 5)
+    return list(contours), stats
+
+
+def kept_blobs(contours: list[np.ndarray], stats: np.ndarray, keep: np.ndarray, sx: float,
+               sy: float) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The kept blobs' boxes (K, 4) and areas (K,) mapped to full resolution by the scale
+    factors (sx, sy), and their contours (mask pixels)."""
+    boxes = stats[keep, :4] * np.array([sx, sy, sx, sy])
+    return (boxes.reshape(-1, 4), stats[keep, 4] * sx * sy,
+            [c for c, k in zip(contours, keep, strict=True) if k])

@@ -1,8 +1,9 @@
 """Moving-vehicle detector: one interface (`MotionDetector.detect`) over named stages:
 prepare (prepare.py) -> stabilise (stabilise.py) -> background (background.py; optionally
 not learning under standing vehicles, hold.py) -> shadows (shadows.py) -> shift tolerance
-(jitter.py) -> blobs (blobs.py; optionally a noise floor in vehicle units, sizes.py) and
-split (split.py). docs/DETECTOR.md describes each stage and its switch.
+(jitter.py) -> blobs (blobs.py; optionally a noise floor in vehicle units, sizes.py, and
+the blobs read against the predicted boxes, pieces.py) -> split (split.py; optionally by the
+expected footprint, footprint.py). docs/DETECTOR.md describes each stage and its switch.
 `detect` is `locate(segment(image))`: `segment` runs the image stages, which need no track
 state, and returns what they found (`Foreground`); `locate` runs the blob stages on it,
 which divide merged blobs among the tracker's predictions.
@@ -49,10 +50,14 @@ import numpy as np
 
 from vtrack.boxes import centre
 from vtrack.vision.background import Mog2Background, estimate_background
-from vtrack.vision.blobs import MaskCleaner, MotionMap, find_blobs, load_roi, polygon_mask
+from vtrack.vision.blobs import (BlobTests, MaskCleaner, MotionMap, find_blobs, kept_blobs,
+                                 load_roi, polygon_mask)
 from vtrack.vision.changed import ChangedMap
 from vtrack.vision.hold import StandingBoxes, held_foreground, hold_mask
+from vtrack.vision.footprint import split_long
+from vtrack.vision.ghosts import StaticForeground
 from vtrack.vision.jitter import ShiftTolerance
+from vtrack.vision.pieces import explained, group_pieces, matched
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
 from vtrack.vision.sizes import SizeFloor
 from vtrack.vision.shadows import drop_shadows, textured_shadow
@@ -161,6 +166,25 @@ class DetectorConfig:
                                        "there is kept even under min_pixels (sizes.py); 0: "
                                        "min_pixels everywhere")
     min_pixels_far: int = _f(24, "the floor never falls below this (detection pixels)")
+    split_footprint: bool = _f(False, "a blob longer than 2 vehicles at its place (the "
+                                      "scale field learnt from the tracked boxes, "
+                                      "sizes.py) that no tracked vehicle's predicted box "
+                                      "matches is cut where it narrows to a waist "
+                                      "(footprint.py)")
+    static_seconds: float = _f(0.0, "foreground that has not changed for this long (s) "
+                                    "is a ghost (of a vehicle in the estimated "
+                                    "background, or one that stood and left) and is "
+                                    "dropped from the mask, except under held standing "
+                                    "vehicles (ghosts.py); 0: off")
+    group_pieces: bool = _f(False, "the pieces of one tracked vehicle (a uniform-colour "
+                                   "truck with holes), none of which would pass the "
+                                   "blob tests alone, are joined into one blob inside "
+                                   "its predicted box before the tests (pieces.py)")
+    area_cap_tracked: bool = _f(False, "max_area_fraction drops only blobs that no "
+                                       "tracked vehicle's predicted box explains (IoU >= "
+                                       "0.5, or holding several: split): a truck driving "
+                                       "up to the camera stays detected, a blob no "
+                                       "vehicle could make is rejected (pieces.py)")
 
     def validate(self) -> None:
         """Raise ValueError naming the first out-of-range field."""
@@ -192,6 +216,7 @@ class DetectorConfig:
             "hold_speed": self.hold_speed > 0,
             "min_vehicle_share": self.min_vehicle_share >= 0,
             "min_pixels_far": self.min_pixels_far >= 1,
+            "static_seconds": self.static_seconds >= 0,
             "hold_min_seconds": self.hold_min_seconds >= 0,
             "hold_max_seconds": self.hold_max_seconds >= self.hold_min_seconds,
         }
@@ -259,7 +284,9 @@ class MotionDetector:
         self.clean = MaskCleaner(mask, cfg.open_kernel, cfg.close_kernel)
         self.shifted = (ShiftTolerance(cfg.shift_tolerance, cfg.shift_radius)
                         if cfg.shift_tolerance > 0 and cfg.stabilise else None)
-        self.motion = MotionMap() if cfg.min_motion > 0 else None
+        self.motion = MotionMap() if cfg.min_motion > 0 or cfg.static_seconds > 0 else None
+        self.ghosts = (StaticForeground(max(1, round(cfg.static_seconds * fps)))
+                       if cfg.static_seconds > 0 else None)
         self.stabiliser = (Stabiliser(*size, probe_frames=max(1, round(2.0 * fps)),
                                       still_px=cfg.stabilise_still_px,
                                       robust=cfg.stabilise_robust,
@@ -275,8 +302,15 @@ class MotionDetector:
         # the threads' timing
         self._held: dict[int, np.ndarray] = {}
         self._located = 0
-        self.floor = (SizeFloor(*size, cfg.min_vehicle_share, cfg.min_pixels_far,
-                                cfg.min_pixels) if cfg.min_vehicle_share > 0 else None)
+        # the scale field learnt from the predicted boxes: the noise floor in vehicle
+        # units (sizes.py) and the expected footprint (footprint.py)
+        self.sizes = (SizeFloor(*size, cfg.min_vehicle_share, cfg.min_pixels_far,
+                                cfg.min_pixels)
+                      if cfg.min_vehicle_share > 0 or cfg.split_footprint else None)
+        self.tests = BlobTests(cfg.min_pixels, cfg.min_area,
+                               cfg.max_area_fraction * width * height, cfg.min_fill,
+                               cfg.min_motion, self._sx * self._sy,
+                               self.sizes if cfg.min_vehicle_share > 0 else None)
         self.foreground: np.ndarray | None = None
 
     @property
@@ -339,10 +373,12 @@ class MotionDetector:
             fg = drop_shadows(raw, cfg.shadow_threshold)
         if self.shifted is not None and self.stabiliser.moved:  # only with a stabiliser
             fg = self.shifted(fg, small, self.background.image())
+        changed = (self.motion(small if prepared or small is not image else image.copy())
+                   if self.motion is not None else None)
+        if self.ghosts is not None:
+            fg = self.ghosts(fg, changed, held)
         self.foreground = self.clean(fg)
-        moving = None
-        if self.motion is not None:
-            moving = self.motion(small if prepared or small is not image else image.copy())
+        moving = cv2.integral(changed) if changed is not None and cfg.min_motion > 0 else None
         learning = self.frames <= cfg.warmup_frames and not self.background.primed
         return Foreground(self.foreground, raw, moving, motion, self._camera, learning,
                           held_boxes)
@@ -356,40 +392,90 @@ class MotionDetector:
         cfg = self.cfg
         predicted = np.zeros((0, 4)) if predicted is None else predicted
         self._located += 1
-        if self.standing is not None or self.floor is not None:
+        if self.standing is not None or self.sizes is not None:
             on_mask = onto_mask(predicted, fg.camera, self._sx, self._sy)
             if self.standing is not None:
                 self._held[self._located] = self.standing(on_mask)
-            if self.floor is not None:
-                self.floor.add(on_mask)
+            if self.sizes is not None:
+                self.sizes.add(on_mask)
         if fg.learning:
             return Detections.empty(fg.motion)
-        boxes, areas, contours = find_blobs(fg.mask, fg.moving, self._sx, self._sy,
-                                            cfg.min_pixels, cfg.min_area,
-                                            cfg.max_area_fraction * self.width * self.height,
-                                            cfg.min_fill, cfg.min_motion, fg.held,
-                                            self.floor)
+        contours, stats = find_blobs(fg.mask)
+        ok, small = self.tests(stats, fg.moving, fg.held)
+        if (cfg.group_pieces or cfg.area_cap_tracked) and len(predicted) and len(stats):
+            contours, stats, ok, small = self._pieces(contours, stats, ok, small, fg,
+                                                      predicted)
+        boxes, areas, contours = kept_blobs(contours, stats, ok & small, self._sx, self._sy)
+        whole = np.arange(len(boxes))   # the blob each row still is whole (-1: a piece)
         if cfg.split_merged and len(boxes) and len(predicted) >= 2:
-            boxes, areas = self._split(boxes, areas, contours, predicted, fg.camera)
+            boxes, areas, whole = self._split(boxes, areas, contours, predicted, fg.camera)
+        if cfg.split_footprint and len(boxes) and self.sizes.coef is not None:
+            boxes, areas = self._footprint(boxes, areas, contours, whole, predicted,
+                                           fg.camera)
         ref_boxes, boxes = boxes, transform_boxes(fg.camera, boxes)  # -> this frame's pixels
         if cfg.stabilise_robust:   # the fit follows the camera: the sway is a few pixels
             boxes = border_edges_kept(ref_boxes, boxes, self.width, self.height)
         return Detections(centre(boxes), boxes, areas, fg.motion,
                           ChangedMap(fg.labels, self._sx, self._sy, fg.camera))
 
+    def _pieces(self, contours: list[np.ndarray], stats: np.ndarray, ok: np.ndarray,
+                small: np.ndarray, fg: Foreground, predicted: np.ndarray
+                ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+        """The blobs (mask pixels) and their tests read against the predicted boxes (this
+        frame's pixels): pieces of one vehicle joined, blobs over the area cap that a
+        predicted box explains passed (pieces.py)."""
+        cfg = self.cfg
+        pred = onto_mask(predicted, fg.camera, self._sx, self._sy)
+        if cfg.group_pieces:
+            n = len(stats)
+            contours, stats = group_pieces(contours, stats, ok & small, pred)
+            if len(stats) != n:
+                ok, small = self.tests(stats, fg.moving, fg.held)
+        if cfg.area_cap_tracked and not small.all():
+            large = np.flatnonzero(ok & ~small)
+            small = small.copy()
+            small[large] = explained(stats[large, :4], pred, *fg.mask.shape[::-1])
+        return contours, stats, ok, small
+
     def _split(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
-               predicted: np.ndarray, camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+               predicted: np.ndarray, camera: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Blobs (full resolution, reference pixels) holding several predicted boxes (this
         frame's pixels; `camera` maps the reference onto it) replaced by their pieces
-        (split.py)."""
+        (split.py). Also returns for each row the blob it is, whole (-1: a piece)."""
         scale = np.array([self._sx, self._sy, self._sx, self._sy])
         pred = onto_mask(predicted, camera, self._sx, self._sy)
-        out_b, out_a = [], []
-        for box, area, contour in zip(boxes, areas, contours, strict=True):
+        out_b, out_a, out_w = [], [], []
+        for i, (box, area, contour) in enumerate(zip(boxes, areas, contours, strict=True)):
             held = holders(box / scale, pred)
             if len(held):
                 pieces, counts = split_blob(contour, pred[held], self.cfg.min_pixels // 2)
                 if len(pieces) >= 2:
+                    out_b.append(pieces * scale)
+                    out_a.append(counts * self._sx * self._sy)
+                    out_w.append(np.full(len(pieces), -1))
+                    continue
+            out_b.append(box[None])
+            out_a.append(np.array([area]))
+            out_w.append(np.array([i]))
+        return np.concatenate(out_b), np.concatenate(out_a), np.concatenate(out_w)
+
+    def _footprint(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
+                   whole: np.ndarray, predicted: np.ndarray, camera: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """Whole blobs (rows of `whole` >= 0: their contour's index; full resolution,
+        reference pixels) longer than the vehicles at their place, and which no predicted
+        box (this frame's pixels) matches, replaced by their pieces cut at the waists
+        (footprint.py)."""
+        scale = np.array([self._sx, self._sy, self._sx, self._sy])
+        side = self.sizes.side(centre(boxes / scale))
+        tracked = matched(boxes / scale, onto_mask(predicted, camera, self._sx, self._sy),
+                          *self.prepare.size)
+        out_b, out_a = [], []
+        for box, area, i, s, t in zip(boxes, areas, whole, side, tracked, strict=True):
+            if i >= 0 and not t:
+                pieces, counts = split_long(contours[i], s, self.cfg.min_pixels // 2)
+                if len(pieces):
                     out_b.append(pieces * scale)
                     out_a.append(counts * self._sx * self._sy)
                     continue

@@ -56,12 +56,18 @@ class SizeFloor:
         if len(self._samples) >= MIN_BOXES and self._frames % REFIT_EVERY == 0:
             self.coef = fit_size(np.array(self._samples))
 
+    def side(self, centres: np.ndarray) -> np.ndarray | None:
+        """The expected side s(x, y) (N,) of a vehicle's box at centres (N, 2), mask pixels;
+        None before the first fit."""
+        if self.coef is None:
+            return None
+        return np.maximum(self.coef[0] + (centres / self.size) @ self.coef[1:], 0.0)
+
     def __call__(self, centres: np.ndarray) -> np.ndarray:
         """The floor (N,) at blob centres (N, 2), mask pixels."""
-        if self.coef is None:
+        side = self.side(centres)
+        if side is None:
             return np.full(len(centres), float(self.min_pixels))
-        p = centres / self.size
-        side = np.maximum(self.coef[0] + p @ self.coef[1:], 0.0)
         return np.clip(self.share * side ** 2, self.min_far, self.min_pixels)
 
 
