@@ -373,10 +373,10 @@ def test_a_blob_cut_by_the_reference_border_stays_on_the_frame_border():
 def test_stabiliser_probe_switches_off_for_a_still_camera_only():
     """The stabiliser estimates the camera's motion (Lucas-Kanade + RANSAC) over its first
     `probe_frames` frames; a camera whose image corners moved no more than `still_px` then
-    costs nothing: the estimate is no longer called, each frame passes through unwarped
-    with the identity, and the shift-tolerance stage stays off (`moved` is False). A
-    camera that sways keeps the stabiliser on, every frame warped back onto the reference.
-    Vehicles drive through both scenes during the probe."""
+    costs almost nothing: the estimate runs only once a second (`stabilise_recheck_seconds`),
+    each frame passes through unwarped with the identity, and the shift-tolerance stage
+    stays off (`moved` is False). A camera that sways keeps the stabiliser on, every frame
+    warped back onto the reference. Vehicles drive through both scenes during the probe."""
     probe = 20
     for shaken in (False, True):
         scene, rng = Scene(320, 240, RECTS, seed=3), np.random.default_rng(0)
@@ -399,11 +399,41 @@ def test_stabiliser_probe_switches_off_for_a_still_camera_only():
             assert out is not small and corner_shift(m, 320, 240) > 0.5
         else:
             assert not stab.active and not stab.moved
-            assert estimates == list(range(1, probe + 1))     # the probe's frames only
+            # the probe's frames, then one a second (fps 10)
+            assert estimates == list(range(1, probe + 1)) + [30, 40]
             small = det.prepare(scene.frame(START + 30))
             out, m = stab(small)
             assert out is small and np.array_equal(m, IDENTITY)
-            assert len(estimates) == probe
+            assert len(estimates) == probe + 2
+
+
+def test_stabiliser_switches_back_on_when_a_still_camera_starts_moving():
+    """A camera still through the probe, knocked 3 px right and 2 px down at frame 35 (wind
+    on the pole): the once-a-second checks (the 40th and 50th frames, 10 fps) find it moved twice
+    in a row and switch the stabiliser back on, and from then every frame is warped back
+    onto the reference, the image's content where it was. Without the check (`stabilise_recheck_seconds` 0) the frames pass through
+    unaligned for the rest of the video."""
+    knock = np.float32([[1, 0, 3.0], [0, 1, 2.0]])
+    inner = (slice(20, -20), slice(20, -20))
+    for recheck in (1.0, 0.0):
+        scene = Scene(320, 240, [], seed=5)
+        cfg = DetectorConfig(warmup_frames=10, stabilise_recheck_seconds=recheck)
+        det = MotionDetector(cfg, 320, 240, fps=10.0)
+        stab = det.stabiliser
+        errors = []
+        for n in range(60):
+            img = scene.frame(n)
+            if n >= 35:
+                img = cv2.warpAffine(img, knock, (320, 240), borderMode=cv2.BORDER_REPLICATE)
+            out, _ = stab(det.prepare(img))
+            errors.append(np.abs(out.astype(float) - det.prepare(scene.frame(n)))[inner].mean())
+        if recheck:
+            assert stab.active and stab.moved
+            assert max(errors[:35]) < 1.0 and max(errors[49:]) < 1.0, errors
+            assert min(errors[35:49]) > 3.0, errors   # unaligned until the second check
+        else:
+            assert not stab.active and not stab.moved
+            assert min(errors[40:]) > 3.0, errors
 
 
 def test_shift_tolerance_blends_follow_their_definition():

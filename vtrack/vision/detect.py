@@ -152,6 +152,11 @@ class DetectorConfig:
                                        "all of them")
     stabilise_still_px: float = _f(0.5, "a camera whose image corners move less than this "
                                          "(detection pixels) over the first 2 s is still")
+    stabilise_recheck_seconds: float = _f(1.0, "a still camera's motion is estimated once "
+                                               "every this many seconds, and the "
+                                               "stabiliser switches back on when it moved "
+                                               "twice in a row (wind, a knock; "
+                                               "stabilise.py); 0: never")
     hold_standing: bool = _f(False, "selective update: MOG2 does not learn the pixels under "
                                     "the predicted boxes of tracked vehicles that stand "
                                     "(hold.py), so a queued vehicle stays foreground and "
@@ -213,6 +218,7 @@ class DetectorConfig:
             "init_background_tolerance": 0 <= self.init_background_tolerance <= 255,
             "init_background_support": 0 <= self.init_background_support <= 1,
             "stabilise_still_px": self.stabilise_still_px >= 0,
+            "stabilise_recheck_seconds": self.stabilise_recheck_seconds >= 0,
             "hold_speed": self.hold_speed > 0,
             "min_vehicle_share": self.min_vehicle_share >= 0,
             "min_pixels_far": self.min_pixels_far >= 1,
@@ -289,6 +295,7 @@ class MotionDetector:
                        if cfg.static_seconds > 0 else None)
         self.stabiliser = (Stabiliser(*size, probe_frames=max(1, round(2.0 * fps)),
                                       still_px=cfg.stabilise_still_px,
+                                      recheck_frames=round(cfg.stabilise_recheck_seconds * fps),
                                       robust=cfg.stabilise_robust,
                                       hold_frames=round(fps) if cfg.stabilise_robust else 0)
                            if cfg.stabilise else None)
