@@ -131,7 +131,6 @@ class Deleter:
         alive[shared & (t - tracks.dup_t >= cfg.duplicate_seconds - 1e-9)] = False
         return inside, alive
 
-
     def _leaving(self, tracks: TrackTable) -> np.ndarray:
         """(N,) tracks whose predicted box keeps under MIN_INSIDE_SHARE of its area in the
         image (its centre is then outside) and whose velocity points further out on an axis
