@@ -116,7 +116,7 @@ class FilterBank:
             return
         if self.kind == "kf":
             q = self.cfg.jerk * tracks.scale**2
-            F = np.broadcast_to(self.model.transition(dt), (len(tracks), 6, 6))
+            F = self.model.transition(dt)
             if coasting is not None and self.cfg.coast_accel_rate > 0 and coasting.any():
                 F = np.where(coasting[:, None, None],
                              singer_transition(dt, self.cfg.coast_accel_rate), F)
