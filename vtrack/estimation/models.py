@@ -126,6 +126,29 @@ class ConstantAcceleration(LinearMotion):
         return phi, q
 
 
+def singer_transition(dt: float, alpha: float, dim: int = 2) -> np.ndarray:
+    """Phi(dt) over [x, y, vx, vy, ax, ay] of an acceleration that is a first-order Markov
+    process, a' = -alpha a + w, alpha the reciprocal of its time constant in 1/s (Singer
+    1970, IEEE TAES 6(4); Li & Jilkov 2003, "Survey of maneuvering target tracking, Part I",
+    sec. 4.1); per axis, with r = exp(-alpha dt):
+
+        [[1, dt, (alpha dt - 1 + r) / alpha^2],
+         [0, 1,  (1 - r) / alpha],
+         [0, 0,  r]]
+
+    alpha = 0 is the constant acceleration of seed 001 eq. (22) (its limit), alpha = inf
+    drops the acceleration (constant velocity)."""
+    if alpha == 0:
+        return ConstantAcceleration(1.0, dim).transition(dt)
+    phi = np.array([[1.0, dt, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]])
+    if np.isfinite(alpha):
+        e = np.expm1(-alpha * dt)          # r - 1, exact where alpha dt is small
+        phi[0, 2] = (alpha * dt + e) / alpha**2
+        phi[1, 2] = -e / alpha
+        phi[2, 2] = 1.0 + e
+    return np.kron(phi, np.eye(dim))
+
+
 class Unicycle(MotionModel):
     """Robot pose [x, y, heading] driven by u = (speed, turn rate); seed 002 eq. (1) form.
 

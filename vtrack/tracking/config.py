@@ -36,6 +36,10 @@ class TrackerConfig:
         "(q_j = jerk * L^2 px^2/s^5 for a box of scale L px)"))
     detection_sigma: float = field(default=0.06, metadata=_h(
         "std of a detected centre, box scales (at least 0.5 px)"))
+    coast_accel_rate: float = field(default=0.0, metadata=_h(
+        "decay rate of a coasting track's acceleration, 1/s (Singer's Markov acceleration, "
+        "models.singer_transition): while no detection updates a track, its acceleration "
+        "decays as exp(-rate dt); 0: constant acceleration; inf: constant velocity"))
     init_speed_sigma: float = field(default=5.0, metadata=_h(
         "prior std of a new track's velocity, box scales/s"))
     init_accel_sigma: float = field(default=3.0, metadata=_h(
@@ -164,6 +168,8 @@ class TrackerConfig:
     def validate(self) -> None:
         if self.filter not in ("kf",) + ADAPTIVE_KINDS:
             raise ValueError(f"tracker.filter must be one of kf, {', '.join(ADAPTIVE_KINDS)}")
+        if self.coast_accel_rate > 0 and self.filter != "kf":
+            raise ValueError("tracker.coast_accel_rate needs tracker.filter = 'kf'")
         if self.measurement not in MEASUREMENTS:
             raise ValueError(f"tracker.measurement must be one of {', '.join(MEASUREMENTS)}")
         for name in ("jerk", "detection_sigma", "init_speed_sigma", "init_accel_sigma",
@@ -190,6 +196,6 @@ class TrackerConfig:
         if not 0 < self.gap_changed_share <= 1:
             raise ValueError("tracker.gap_changed_share must be in (0, 1]")
         for name in ("confirm_motion", "edge_margin", "size_grow_seconds", "stand_speed",
-                     "split_hold_seconds", "duplicate_seconds"):
+                     "split_hold_seconds", "duplicate_seconds", "coast_accel_rate"):
             if getattr(self, name) < 0:
                 raise ValueError(f"tracker.{name} must be >= 0")

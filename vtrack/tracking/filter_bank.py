@@ -24,7 +24,8 @@ import numpy as np
 from vtrack.estimation.filters import GaussianFilter
 from vtrack.filter_kinds import make_filter
 from vtrack.estimation.kalman import kf_predict, kf_update
-from vtrack.estimation.models import ConstantAcceleration, position_measurement
+from vtrack.estimation.models import (ConstantAcceleration, position_measurement,
+                                      singer_transition)
 from vtrack.tracking.columns import Columns
 from vtrack.tracking.config import TrackerConfig
 
@@ -104,13 +105,22 @@ class FilterBank:
         tracks.x[i], tracks.P[i] = f.x, f.P
         return out
 
-    def predict(self, tracks: TrackTable, dt: float) -> None:
-        """Propagate every track over dt (s) with the white-jerk model (seed 001 eqs. 21-23)."""
+    def predict(self, tracks: TrackTable, dt: float, coasting: np.ndarray | None = None
+                ) -> None:
+        """Propagate every track over dt (s) with the white-jerk model (seed 001 eqs. 21-23);
+        the tracks `coasting` (N,) bool, no detection since the last step, with Singer's
+        decaying acceleration instead when `coast_accel_rate` > 0 (models.singer_transition;
+        the same white-jerk Q): the one acceleration the detections last estimated is not
+        extrapolated as a manoeuvre held for the whole coast."""
         if len(tracks) == 0 or dt <= 0:
             return
         if self.kind == "kf":
             q = self.cfg.jerk * tracks.scale**2
-            tracks.x, tracks.P = kf_predict(tracks.x, tracks.P, self.model.transition(dt),
+            F = self.model.transition(dt)
+            if coasting is not None and self.cfg.coast_accel_rate > 0 and coasting.any():
+                F = np.where(coasting[:, None, None],
+                             singer_transition(dt, self.cfg.coast_accel_rate), F)
+            tracks.x, tracks.P = kf_predict(tracks.x, tracks.P, F,
                                             q[:, None, None] * self.model.Q(dt))
             return
         for i in range(len(tracks)):

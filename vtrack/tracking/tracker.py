@@ -104,13 +104,15 @@ class Tracker:
         previous frame's pixels onto this frame's. Returns the confirmed tracks' predicted
         boxes (K, 4), x, y, w, h (not clipped to the image)."""
         dt = 0.0 if self.t_prev is None else t - self.t_prev
-        self.t_prev = t
         tracks = self.tracks
+        # coasting: no detection at the last step's time (the newest one is older)
+        coasting = tracks.hist_t[:, 0] < t - dt - 1e-9
+        self.t_prev = t
         if motion is not None and len(tracks) and not np.allclose(motion, _IDENTITY):
             tracks.warp(motion)
             self.gaps.warp(motion)
         growth = self.sizes.growth(tracks)   # from the velocities and scales before the step
-        self.bank.predict(tracks, dt)
+        self.bank.predict(tracks, dt, coasting)
         self.sizes.predict(tracks, dt, growth)
         conf = tracks.id > 0
         return from_centre(tracks.x[conf, :2], tracks.size[conf])
