@@ -202,18 +202,32 @@ def test_unknown_config_key_is_rejected(synth_video, tmp_path, capsys):
 
 
 class _Recorder:
-    """A detector whose `segment` records the thread and order it runs in."""
+    """A detector whose `align` and `subtract` record the thread and order they run in,
+    and how many frames the caller had taken when each `subtract` began."""
 
     def __init__(self, fail_at: int | None = None) -> None:
-        self.calls: list[tuple[int, str]] = []
+        self.calls: list[tuple[str, int, str]] = []
         self.fail_at = fail_at
+        self.taken = 0          # frames the caller has taken from `segmented`
+        self.taken_at: dict[int, int] = {}
 
-    def segment(self, image, prepared=False):
+    def _record(self, stage: str, image: int) -> None:
         import threading
 
+        self.calls.append((stage, image, threading.current_thread().name))
+
+    def align(self, image, prepared=False):
+        self._record("align", image)
+        return image
+
+    def subtract(self, image):
+        import time
+
+        time.sleep(0.002)       # let the caller run ahead if nothing holds it back
         if image == self.fail_at:
             raise RuntimeError(f"segment failed on {image}")
-        self.calls.append((image, threading.current_thread().name))
+        self.taken_at[image] = self.taken
+        self._record("subtract", image)
         return -image
 
 
@@ -232,10 +246,18 @@ def test_segmented_runs_each_frame_ahead_in_a_worker_in_order():
     from vtrack.app.track import segmented
 
     det = _Recorder()
-    out = [(f.index, fg) for f, fg in segmented(_frames(6), det)]
+    out = []
+    for f, fg in segmented(_frames(6), det):
+        out.append((f.index, fg))
+        det.taken += 1
     assert out == [(k, -k) for k in range(1, 7)]
-    assert [k for k, _ in det.calls] == list(range(1, 7))
-    assert all(name.startswith("vtrack-segment") for _, name in det.calls)
+    for stage in ("align", "subtract"):
+        calls = [(k, name) for s, k, name in det.calls if s == stage]
+        assert [k for k, _ in calls] == list(range(1, 7))
+        assert all(name.startswith(f"vtrack-{stage}") for _, name in calls)
+    # subtract of frame k begins only once the caller has finished frame k - 2 (and so
+    # handed over the boxes located there: detect.HOLD_LAG), never before
+    assert all(det.taken_at[k] >= k - 2 for k in range(1, 7)), det.taken_at
 
 
 def test_segmented_gives_the_frame_in_hand_before_a_source_error():
@@ -264,13 +286,13 @@ def test_opencv_threads_during_a_run(synth_video, tmp_path, monkeypatch):
     from vtrack.vision.detect import MotionDetector
 
     seen = set()
-    segment = MotionDetector.segment
+    subtract = MotionDetector.subtract
 
     def spy(self, *args, **kwargs):
         seen.add(cv2.getNumThreads())
-        return segment(self, *args, **kwargs)
+        return subtract(self, *args, **kwargs)
 
-    monkeypatch.setattr(MotionDetector, "segment", spy)
+    monkeypatch.setattr(MotionDetector, "subtract", spy)
     before = cv2.getNumThreads()
     cv2.setNumThreads(2)
     try:

@@ -14,6 +14,7 @@ import contextlib
 import dataclasses
 import sys
 import time
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -412,24 +413,40 @@ def opencv_threads(n: int) -> Iterator[None]:
 def segmented(frames: Iterable[tuple[Any, bool]], detector: Any
               ) -> Iterator[tuple[Any, Any]]:
     """(frame, detector.segment(frame.image, prepared)) for each (frame, prepared) of
-    `frames`, in order. The image stages
-    of a frame run in a worker thread while the caller handles the frame before it (they
-    need no track state; OpenCV releases the GIL): one frame of latency, the same results.
-    A source that fails after some frames (InputError) still gives the frame in hand
-    before the error is raised."""
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtrack-segment") as pool:
-        pending: tuple[Any, Future] | None = None
+    `frames`, in order. The image stages run in two worker threads, a three-stage pipeline:
+    while the caller handles frame n, one thread runs `detector.subtract` (MOG2 and what
+    follows it) of frame n + 1 and the other `detector.align` (prepare, stabilise, gain) of
+    frame n + 2 (they need no track state, their halves keep separate state, and OpenCV
+    releases the GIL): two frames of latency, the same results. `subtract` of frame n + 1
+    starts only once the caller has asked for frame n, so it holds the standing boxes
+    located up to frame n - 1 (detect.HOLD_LAG) whatever the threads' timing. A source that
+    fails after some frames (InputError) still gives the frames in hand before the error
+    is raised."""
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtrack-align") as first, \
+            ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtrack-subtract") as second:
+        aligning: tuple[Any, Future] | None = None      # aligned, not yet subtracted
+        subtracting: deque[tuple[Any, Future]] = deque()
         failure: InputError | None = None
+
+        def subtract(aligned: Future) -> Any:
+            return detector.subtract(aligned.result())
+
         try:
             for frame, prepared in frames:
-                ahead = (frame, pool.submit(detector.segment, frame.image, prepared))
-                if pending is not None:
-                    yield pending[0], pending[1].result()
-                pending = ahead
+                ahead = (frame, first.submit(detector.align, frame.image, prepared))
+                if aligning is not None:
+                    subtracting.append((aligning[0], second.submit(subtract, aligning[1])))
+                aligning = ahead
+                while len(subtracting) > 1:
+                    done, foreground = subtracting.popleft()
+                    yield done, foreground.result()
         except InputError as exc:
             failure = exc
-        if pending is not None:
-            yield pending[0], pending[1].result()
+        if aligning is not None:
+            subtracting.append((aligning[0], second.submit(subtract, aligning[1])))
+        while subtracting:
+            done, foreground = subtracting.popleft()
+            yield done, foreground.result()
         if failure is not None:
             raise failure
 

@@ -254,6 +254,17 @@ class Detections:
 
 
 @dataclass
+class Aligned:
+    """One frame after the detector's first image stages (`MotionDetector.align`)."""
+
+    image: np.ndarray           # at the detection resolution, on the reference, gain-corrected
+    own: bool                   # `image` is the detector's to keep (not the caller's array)
+    motion: np.ndarray          # (2, 3) camera motion: the previous frame -> this one
+    camera: np.ndarray          # (2, 3) the stabiliser's reference -> this frame
+    moved: bool                 # the camera has moved so far (shift tolerance runs)
+
+
+@dataclass
 class Foreground:
     """One frame after the detector's image stages (`MotionDetector.segment`)."""
 
@@ -356,8 +367,14 @@ class MotionDetector:
     def segment(self, image: np.ndarray, prepared: bool = False) -> Foreground:
         """The image stages (prepare, stabilise, gain, MOG2, shadows, shift tolerance,
         morphology, motion map) of the next frame, in frame order; they need no track
-        state. `prepared`: `image` is already `prepare`d (and the detector's to keep)."""
-        cfg = self.cfg
+        state. `prepared`: `image` is already `prepare`d (and the detector's to keep).
+        `subtract(align(image, prepared))`: the two halves keep separate state, so
+        `align` of one frame may run beside `subtract` of the one before (app/track.py)."""
+        return self.subtract(self.align(image, prepared))
+
+    def align(self, image: np.ndarray, prepared: bool = False) -> Aligned:
+        """The first image stages of the next frame, in frame order: prepare, stabilise,
+        gain compensation."""
         small = image if prepared else self.prepare(image)
         motion = IDENTITY
         if self.stabiliser is not None:
@@ -367,6 +384,14 @@ class MotionDetector:
             self._camera = camera
         if self.gain is not None:
             small = self.gain(small)
+        moved = self.stabiliser is not None and self.stabiliser.moved
+        return Aligned(small, prepared or small is not image, motion, self._camera, moved)
+
+    def subtract(self, aligned: Aligned) -> Foreground:
+        """The other image stages of the next aligned frame, in frame order: MOG2 (with the
+        standing boxes held), shadows, shift tolerance, motion map, ghosts, morphology."""
+        cfg = self.cfg
+        small = aligned.image
         held_boxes = self._held.pop(self.frames + 1 - HOLD_LAG, None)
         held = hold_mask(held_boxes, small.shape[:2]) if held_boxes is not None else None
         raw = self.background.apply(small, held)
@@ -378,17 +403,17 @@ class MotionDetector:
             fg = textured_shadow(raw, small, self.background.image(), cfg.shadow_texture)
         else:
             fg = drop_shadows(raw, cfg.shadow_threshold)
-        if self.shifted is not None and self.stabiliser.moved:  # only with a stabiliser
+        if self.shifted is not None and aligned.moved:  # only with a stabiliser
             fg = self.shifted(fg, small, self.background.image())
-        changed = (self.motion(small if prepared or small is not image else image.copy())
+        changed = (self.motion(small if aligned.own else small.copy())
                    if self.motion is not None else None)
         if self.ghosts is not None:
             fg = self.ghosts(fg, changed, held)
         self.foreground = self.clean(fg)
         moving = cv2.integral(changed) if changed is not None and cfg.min_motion > 0 else None
         learning = self.frames <= cfg.warmup_frames and not self.background.primed
-        return Foreground(self.foreground, raw, moving, motion, self._camera, learning,
-                          held_boxes)
+        return Foreground(self.foreground, raw, moving, aligned.motion, aligned.camera,
+                          learning, held_boxes)
 
     def locate(self, fg: Foreground, predicted: np.ndarray | None = None) -> Detections:
         """The blobs of a segmented frame, in its pixels.
