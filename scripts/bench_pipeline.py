@@ -154,15 +154,18 @@ def main() -> None:
     clock = "its CPU time" if args.stage_clock == "cpu" else "the wall clock"
     print(f"per frame, every stage timed in one thread by {clock} (vtrack track --profile):")
     print(profile.table(stages))
-    # `vtrack track` runs the image stages of frame n + 1 in a worker thread while frame n
-    # is tracked (app/track.py: segmented): the larger of the two sums bounds the rate.
+    # `vtrack track` runs the image stages in two worker threads while frame n is tracked:
+    # subtract on frame n + 1, align on frame n + 2 (app/track.py: segmented); the largest
+    # of the three sums bounds the rate.
     per_frame = {row["stage"]: row["ms_per_frame"] for row in stages["stages"]}
     outside = (profile.START, profile.BACKGROUND, profile.DECODE, profile.UNACCOUNTED)
-    worker = sum(ms for name, ms in per_frame.items()
-                 if name not in profile.MAIN_THREAD and name not in outside)
+    align = sum(per_frame.get(name, 0.0) for name in profile.ALIGN_THREAD)
+    subtract = sum(ms for name, ms in per_frame.items() if name not in profile.MAIN_THREAD
+                   and name not in profile.ALIGN_THREAD and name not in outside)
     main = sum(per_frame.get(name, 0.0) for name in profile.MAIN_THREAD)
-    print(f"  image stages (worker thread){worker:13.2f} ms; "
-          f"blobs, split, tracker, outputs (main thread){main:7.2f} ms")
+    print(f"  per thread: align (prepare, stabilise, gain) {align:.2f} ms; subtract (MOG2 "
+          f"and the rest) {subtract:.2f} ms; blobs, split, tracker, outputs (main) "
+          f"{main:.2f} ms")
 
 if __name__ == "__main__":
     main()
