@@ -28,7 +28,7 @@ from vtrack.analytics.traffic import TrafficAnalytics
 from vtrack.app.outputs import (DetectionsCsv, FrameTimes, Sink, TrackedFrame, TrackEnds,
                                 TracksCsv, TrafficSink)
 from vtrack.app import profile
-from vtrack.app.readonce import read_once
+from vtrack.app.readonce import fits, read_once, sample_numbers
 from vtrack.errors import InputError
 from vtrack.fileio import replace_dir, write_json
 from vtrack.tracking.tracker import FrameTracks, Tracker
@@ -99,6 +99,7 @@ class TrackJob:
         self.error: str | None = None
         self.times = profile.StageTimes() if opts.profile else None   # --profile
         self._wanted: set[int] = set()   # frames sampled for the background estimate
+        self._ahead = False              # ... taken from this read (readonce.read_once)
 
     # ------------------------------------------------------------------ running
     def run(self) -> dict[str, Any]:
@@ -134,7 +135,8 @@ class TrackJob:
             detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height,
                                       self.info.fps, roi)
             self._wanted = self._background_sample_numbers(detector)
-            if self._wanted and not self._read_once(detector):
+            self._ahead = bool(self._wanted) and self._read_once(detector)
+            if self._wanted and not self._ahead:
                 # a second read of the start, for a run that needs the full frames later
                 # or would keep too many frames while reading ahead (app/readonce.py)
                 with self._stage(profile.BACKGROUND, outside_loop=True):
@@ -208,7 +210,7 @@ class TrackJob:
         with contextlib.ExitStack() as stack:
             if self.times is not None:
                 stack.enter_context(profile.instrumented(detector, tracker, self.times))
-            if self._wanted and self._read_once(detector):
+            if self._ahead:
                 frames = read_once(source, detector, self._wanted,
                                    lambda: self._stage(profile.BACKGROUND))
             else:
@@ -271,8 +273,6 @@ class TrackJob:
         (readonce.sample_numbers): none for a live source (a live stream read every frame
         (--live no) has no known start either), else those of a file or a stream of known
         length (a file on a web server)."""
-        from vtrack.app.readonce import sample_numbers
-
         if self.reader.live or not (self.source.is_file or self.info.frame_count):
             return set()
         cfg = self.cfg.detector
@@ -283,8 +283,6 @@ class TrackJob:
         """Whether the background's samples come from the tracking's own read
         (readonce.read_once): when no output needs the full frames the detector's look-ahead
         drops, and that look-ahead fits in memory."""
-        from vtrack.app.readonce import fits
-
         full_frames = self.opts.save_frames or self.opts.save_video or self.opts.rerun \
             or self.opts.rerun_spawn
         return not full_frames and fits(self._wanted, detector.prepare.size)

@@ -105,8 +105,10 @@ class Tracker:
         boxes (K, 4), x, y, w, h (not clipped to the image)."""
         dt = 0.0 if self.t_prev is None else t - self.t_prev
         tracks = self.tracks
-        # coasting: no detection at the last step's time (the newest one is older)
-        coasting = tracks.hist_t[:, 0] < t - dt - 1e-9
+        # coasting: no detection at the last step's time (the newest one is older); only
+        # Singer's coasting model (coast_accel_rate) reads it
+        coasting = (tracks.hist_t[:, 0] < t - dt - 1e-9
+                    if self.cfg.coast_accel_rate > 0 else None)
         self.t_prev = t
         if motion is not None and len(tracks) and not np.allclose(motion, _IDENTITY):
             tracks.warp(motion)

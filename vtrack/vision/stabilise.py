@@ -239,9 +239,10 @@ class Stabiliser:
     def __call__(self, small: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(small warped onto the reference, M reference -> current) for the next frame."""
         self.frames += 1
-        if not self.active and not self._moved_since(small):
-            return small, IDENTITY
-        self.active = True
+        if not self.active:
+            if not self._moved_since(small):
+                return small, IDENTITY
+            self.active = True       # the camera started moving
         m = self.estimate(small)
         if m is None and self._held < self.hold_frames:
             self._held += 1          # robust: vehicles hide the features for a while
