@@ -46,6 +46,8 @@ ABLATIONS = {
                          "explains (pieces.py)", "[detector]\narea_cap_tracked = true\n"),
     "split-footprint": ("(switched ON) blobs longer than two vehicles cut at their waists "
                         "(footprint.py)", "[detector]\nsplit_footprint = true\n"),
+    "split-necks": ("(switched ON) blobs pinched into two bodies split at the neck "
+                    "(necks.py)", "[detector]\nsplit_necks = true\n"),
     "static-ghosts": ("(switched ON) foreground unchanged for 2 s dropped (ghosts.py)",
                       "[detector]\nstatic_seconds = 2.0\n"),
     "whole-clip-background": ("(switched ON) background estimated over the whole file",

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from vtrack.evaluation.mot import evaluate_arrays
-from vtrack.evaluation.oracle import moved_share, oracle_detections, unmoved_ignored
+from vtrack.evaluation.oracle import (hidden_crossings, moved_share, oracle_detections,
+                                      unmoved_ignored)
 
 
 def _row(frame: int, vid: int, x: float, y: float, w: float = 20.0, h: float = 10.0,
@@ -87,3 +88,26 @@ def test_moved_share_is_the_ceiling_of_a_motion_tracker() -> None:
     tracks = np.array([r[:10] for r in moving[2:]])
     assert evaluate_arrays(gt, tracks)["mota"] == pytest.approx(28 / 60)
     assert np.isnan(moved_share(gt[:0], gt[:0]))                # nothing scored
+
+
+def test_crossings_out_of_sight_on_one_side_are_hidden() -> None:
+    """A vertical line at x = 100 (forward: moving left). Vehicle 1 crosses in view; 2
+    crosses behind a bus and is seen on both sides; 3 crosses hidden and is never seen
+    again; 4 is hidden from its first row until after the line. Only 3 and 4 are hidden,
+    and each counts in its own direction."""
+    line = [[100.0, 0.0, 100.0, 200.0]]
+    gt = []
+    for vid, speed in ((1, 10.0), (2, 10.0), (3, -10.0), (4, 10.0)):
+        x0 = 40.0 if speed > 0 else 160.0
+        for f in range(1, 13):
+            x = x0 + speed * (f - 1) - 10            # box centre x0 + speed (f - 1)
+            crossing = abs(x + 10 - 100) <= 15
+            vis = {1: 1.0,
+                   2: 0.0 if crossing else 1.0,
+                   3: 0.0 if x + 10 <= 115 else 1.0,
+                   4: 0.0 if x + 10 <= 115 else 1.0}[vid]
+            gt.append(_row(f, vid, x, 30.0 * vid, vis=vis))
+    gt = np.array(gt)
+    assert hidden_crossings(gt, line) == [[1, 1]]
+    assert hidden_crossings(gt[gt[:, 1] <= 2], line) == [[0, 0]]
+    assert hidden_crossings(gt[:, :10], line) == [[0, 0]]    # no visibility column

@@ -46,3 +46,22 @@ def test_moved_visible_ignores_unmoved_and_mostly_hidden_rows() -> None:
     out = moved_visible(np.array(rows))
     # centre moves 4 px a frame from frame 4: half of sqrt(20 * 20) = 10 px by frame 6
     assert out[:, 6].tolist() == [0, 0, 0, 0, 0, 1, 1, 0, 1]
+
+
+def test_counts_beside_the_crossings_made_out_of_sight(load_script, capsys) -> None:
+    """The synthetic count table shows each line-direction's hidden crossings
+    (oracle.hidden_crossings) beside the true count, and the exact counts' ceiling."""
+    suite = load_script("eval_suite")
+    r = suite.Result("side-2", "synthetic")
+    r.hand = [["0.60 H", [0, 0], [0, 0]], ["0.50 W", [9, 9], [7, 7]]]
+    r.hidden = [[0, 0], [0, 1]]
+    r.counts = {"vtrack": [[0, 0], [8, 6]]}
+    summary = suite.summarise([r], ["vtrack"])
+    assert summary["synth_counts_ceiling"] == {"line_directions": 4, "with_hidden_crossing": 1,
+                                               "hidden_crossings": 1}
+    suite.print_counts([r], ["vtrack"], summary, "synthetic clip", "true", "synth_counts",
+                       "synth_count")
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split() == ["synthetic", "clip", "line", "dir", "true", "hidden", "vtrack"]
+    assert lines[2].split() == ["side-2", "0.50", "W", "bwd", "7", "1", "6", "(-1)"]
+    assert "1 of 4 line-directions hold one, so at most 3 counts" in " ".join(lines)

@@ -1,5 +1,6 @@
-"""Blobs read against the tracked vehicles' predicted boxes (vision/pieces.py) and cut at
-their waists by the expected footprint (vision/footprint.py), alone and in the detector."""
+"""Blobs read against the tracked vehicles' predicted boxes (vision/pieces.py), cut at
+their waists by the expected footprint (vision/footprint.py) and at their necks
+(vision/necks.py), alone and in the detector."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from vtrack.vision.blobs import BlobTests, find_blobs
 from vtrack.vision.detect import DetectorConfig, MotionDetector
 from vtrack.vision.footprint import cuts, split_long
 from vtrack.vision.ghosts import StaticForeground
+from vtrack.vision.necks import split_necks
 from vtrack.vision.pieces import explained, group_pieces
 
 
@@ -115,6 +117,34 @@ def test_platoon_is_cut_into_its_vehicles_a_truck_is_not():
     truck = _contour(_mask((50, 100, 20, 66)))
     assert len(split_long(truck, 20.0, 10)[0]) == 0
     assert len(split_long(platoon, 40.0, 10)[0]) == 0
+
+
+def test_cars_side_by_side_split_at_their_neck_one_notched_vehicle_not():
+    """Two cars 24 x 16 offset on both axes (adjacent lanes seen obliquely), touching at a
+    corner: two bodies, each box its car's. A car with a notch on one side, two cars
+    side by side along one axis, a single car and a blob thinner than MIN_PEAK stay whole."""
+    pair = _contour(_mask((40, 100, 24, 16), (58, 84, 24, 16)))
+    boxes, counts = split_necks(pair, 10)
+    assert len(boxes) == 2 and counts.sum() >= 2 * 24 * 16 - 40
+    order = np.argsort(boxes[:, 0])
+    assert np.allclose(boxes[order[0]], [40, 100, 24, 16], atol=4)
+    assert np.allclose(boxes[order[1]], [58, 84, 24, 16], atol=4)
+    notched = np.zeros((240, 320), np.uint8)
+    notched[100:120, 40:100] = 255
+    notched[100:112, 68:72] = 0                 # a 4 px notch 60 % into a 20 px body
+    assert len(split_necks(_contour(notched), 10)[0]) == 0
+    in_line = _contour(_mask((40, 100, 24, 16), (60, 104, 24, 8), (80, 100, 24, 16)))
+    assert len(split_necks(in_line, 10)[0]) == 0
+    assert len(split_necks(_contour(_mask((40, 100, 24, 16))), 10)[0]) == 0
+    assert len(split_necks(_contour(_mask((40, 100, 60, 4), (95, 96, 4, 4))), 10)[0]) == 0
+
+
+def test_detector_splits_the_pinched_pair_only_with_the_switch():
+    img = np.full((240, 320, 3), 110, np.uint8)
+    img[100:116, 40:64] = img[84:100, 61:85] = (230, 230, 230)   # touching over 3 px
+    assert len(_detector().detect(img)) == 1
+    d = _detector(split_necks=True, min_pixels=100).detect(img)
+    assert len(d) == 2
 
 
 def test_static_foreground_is_dropped_after_its_time_not_under_held_boxes():

@@ -15,14 +15,19 @@ Background subtraction cannot see a vehicle that stands from the first frame, an
 motion tracker does not confirm one (a static blob is noise or a ghost to it). With this
 marking such vehicles cost it nothing. A tracker that does follow them gains nothing
 either: its rows matched to ignore regions are dropped (mot.drop_ignored).
+
+`hidden_crossings` is the counting lines' ceiling: the true crossings of vehicles out of the
+camera's sight on one side of the line, which a counter on the video can only guess.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from vtrack.analytics.lines import LineCounter
 from vtrack.evaluation.mot import MIN_VISIBILITY, ignore_mask
 
 
@@ -88,6 +93,34 @@ def moved_share(gt: np.ndarray, marked: np.ndarray) -> float:
     if not scored.any():
         return float("nan")
     return float(np.mean(~ignore_mask(marked)[scored]))
+
+
+def hidden_crossings(gt: np.ndarray, lines: Sequence[Sequence[float]]) -> list[list[int]]:
+    """[forward, backward] per line of the ground truth's crossings (counted by the rule of
+    `vtrack track`, analytics/lines.py) made out of the camera's sight: the vehicle is
+    under MIN_VISIBILITY visible (the 11th column) in the frames either side of the
+    crossing, and it is not seen (at least MIN_VISIBILITY visible) both before and after
+    them, so no tracker follows it across; one that coasts on its prediction can only
+    guess the crossing. A vehicle that crosses behind a bus and is seen on both sides is
+    not hidden. Without a visibility column nothing is hidden."""
+    out = [[0, 0] for _ in lines]
+    if gt.shape[1] < 11 or not len(gt):
+        return out
+    counter = LineCounter(lines)
+    rows = gt[np.lexsort((gt[:, 0], gt[:, 1]))]
+    starts = np.flatnonzero(np.r_[True, rows[1:, 1] != rows[:-1, 1]])
+    for a, b in zip(starts, np.r_[starts[1:], len(rows)], strict=True):
+        seen = rows[a:b, 10] >= MIN_VISIBILITY
+        for k in range(a, b):
+            for c in counter.add(int(rows[k, 1]), int(rows[k, 0]), 0.0,
+                                 rows[k, 2:4] + rows[k, 4:6] / 2):
+                i = k - a                              # the row that completes the crossing
+                if seen[i] or (i > 0 and seen[i - 1]):
+                    continue
+                if not (seen[:i].any() and seen[i:].any()):
+                    out[c.line][0 if c.direction == "forward" else 1] += 1
+        counter.forget(int(rows[a, 1]))
+    return out
 
 
 def tracked_rows(tracker: Any, dets: np.ndarray, frames: int, fps: float) -> np.ndarray:

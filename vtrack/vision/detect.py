@@ -2,8 +2,9 @@
 prepare (prepare.py) -> stabilise (stabilise.py) -> background (background.py; optionally
 not learning under standing vehicles, hold.py) -> shadows (shadows.py) -> shift tolerance
 (jitter.py) -> blobs (blobs.py; optionally a noise floor in vehicle units, sizes.py, and
-the blobs read against the predicted boxes, pieces.py) -> split (split.py; optionally by the
-expected footprint, footprint.py). docs/DETECTOR.md describes each stage and its switch.
+the blobs read against the predicted boxes, pieces.py) -> split (split.py; optionally at
+their necks, necks.py, and by the expected footprint, footprint.py). docs/DETECTOR.md
+describes each stage and its switch.
 `detect` is `locate(segment(image))`: `segment` runs the image stages, which need no track
 state, and returns what they found (`Foreground`); `locate` runs the blob stages on it,
 which divide merged blobs among the tracker's predictions.
@@ -41,7 +42,7 @@ Boxes, centres and areas are mapped back to full-resolution pixels.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,6 +58,7 @@ from vtrack.vision.hold import StandingBoxes, held_foreground, hold_mask
 from vtrack.vision.footprint import split_long
 from vtrack.vision.ghosts import StaticForeground
 from vtrack.vision.jitter import ShiftTolerance
+from vtrack.vision.necks import split_necks
 from vtrack.vision.pieces import explained, group_pieces, matched
 from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_factor
 from vtrack.vision.sizes import SizeFloor
@@ -65,6 +67,8 @@ from vtrack.vision.split import holders, split_blob
 from vtrack.vision.stabilise import (IDENTITY, Stabiliser, border_edges_kept, compose, invert,
                                      onto_mask, rescale, transform_boxes)
 
+Pieces = tuple[np.ndarray, np.ndarray]   # a blob's pieces: boxes (n, 4), pixel counts (n,)
+NO_PIECES: Pieces = (np.zeros((0, 4)), np.zeros(0))
 HOLD_LAG = 2   # frames between the predicted boxes a frame holds and the frame
 
 __all__ = ["DetectorConfig", "Detections", "Foreground", "MotionDetector", "downscale_factor"]
@@ -185,6 +189,10 @@ class DetectorConfig:
                                    "truck with holes), none of which would pass the "
                                    "blob tests alone, are joined into one blob inside "
                                    "its predicted box before the tests (pieces.py)")
+    split_necks: bool = _f(False, "a blob pinched into several bodies of a similar width "
+                                  "(two vehicles side by side seen obliquely, touching at "
+                                  "a corner) is split at the necks of its distance "
+                                  "transform (necks.py)")
     area_cap_tracked: bool = _f(False, "max_area_fraction drops only blobs that no "
                                        "tracked vehicle's predicted box explains (IoU >= "
                                        "0.5, or holding several: split): a truck driving "
@@ -441,6 +449,8 @@ class MotionDetector:
         whole = np.arange(len(boxes))   # the blob each row still is whole (-1: a piece)
         if cfg.split_merged and len(boxes) and len(predicted) >= 2:
             boxes, areas, whole = self._split(boxes, areas, contours, predicted, fg.camera)
+        if cfg.split_necks and len(boxes):
+            boxes, areas, whole = self._necks(boxes, areas, contours, whole)
         if cfg.split_footprint and len(boxes) and self.sizes.coef is not None:
             boxes, areas = self._footprint(boxes, areas, contours, whole, predicted,
                                            fg.camera)
@@ -469,6 +479,25 @@ class MotionDetector:
             small[large] = explained(stats[large, :4], pred, *fg.mask.shape[::-1])
         return contours, stats, ok, small
 
+    def _divided(self, boxes: np.ndarray, areas: np.ndarray, whole: np.ndarray,
+                 cut: Callable[[int], Pieces]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The blobs (full resolution, reference pixels) with each row replaced by its
+        pieces where `cut(row)` returns some (boxes (n, 4) and pixel counts (n,) in mask
+        pixels); also which blob each row still is, whole (`whole`; -1: a piece)."""
+        scale = np.array([self._sx, self._sy, self._sx, self._sy])
+        out_b, out_a, out_w = [], [], []
+        for row, (box, area, w) in enumerate(zip(boxes, areas, whole, strict=True)):
+            pieces, counts = cut(row)
+            if len(pieces):
+                out_b.append(pieces * scale)
+                out_a.append(counts * self._sx * self._sy)
+                out_w.append(np.full(len(pieces), -1))
+            else:
+                out_b.append(box[None])
+                out_a.append(np.array([area]))
+                out_w.append(np.array([w]))
+        return np.concatenate(out_b), np.concatenate(out_a), np.concatenate(out_w)
+
     def _split(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
                predicted: np.ndarray, camera: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -477,20 +506,24 @@ class MotionDetector:
         (split.py). Also returns for each row the blob it is, whole (-1: a piece)."""
         scale = np.array([self._sx, self._sy, self._sx, self._sy])
         pred = onto_mask(predicted, camera, self._sx, self._sy)
-        out_b, out_a, out_w = [], [], []
-        for i, (box, area, contour) in enumerate(zip(boxes, areas, contours, strict=True)):
-            held = holders(box / scale, pred)
+
+        def cut(row: int) -> Pieces:
+            held = holders(boxes[row] / scale, pred)
             if len(held):
-                pieces, counts = split_blob(contour, pred[held], self.cfg.min_pixels // 2)
+                pieces, counts = split_blob(contours[row], pred[held], self.cfg.min_pixels // 2)
                 if len(pieces) >= 2:
-                    out_b.append(pieces * scale)
-                    out_a.append(counts * self._sx * self._sy)
-                    out_w.append(np.full(len(pieces), -1))
-                    continue
-            out_b.append(box[None])
-            out_a.append(np.array([area]))
-            out_w.append(np.array([i]))
-        return np.concatenate(out_b), np.concatenate(out_a), np.concatenate(out_w)
+                    return pieces, counts
+            return NO_PIECES
+
+        return self._divided(boxes, areas, np.arange(len(boxes)), cut)
+
+    def _necks(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
+               whole: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Whole blobs (rows of `whole` >= 0: their contour's index) replaced by their
+        bodies when they pinch at a neck (necks.py); `whole` after it."""
+        return self._divided(boxes, areas, whole, lambda row: (
+            split_necks(contours[whole[row]], self.cfg.min_pixels // 2)
+            if whole[row] >= 0 else NO_PIECES))
 
     def _footprint(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
                    whole: np.ndarray, predicted: np.ndarray, camera: np.ndarray
@@ -503,14 +536,7 @@ class MotionDetector:
         side = self.sizes.side(centre(boxes / scale))
         tracked = matched(boxes / scale, onto_mask(predicted, camera, self._sx, self._sy),
                           *self.prepare.size)
-        out_b, out_a = [], []
-        for box, area, i, s, t in zip(boxes, areas, whole, side, tracked, strict=True):
-            if i >= 0 and not t:
-                pieces, counts = split_long(contours[i], s, self.cfg.min_pixels // 2)
-                if len(pieces):
-                    out_b.append(pieces * scale)
-                    out_a.append(counts * self._sx * self._sy)
-                    continue
-            out_b.append(box[None])
-            out_a.append(np.array([area]))
-        return np.concatenate(out_b), np.concatenate(out_a)
+        boxes, areas, _ = self._divided(boxes, areas, whole, lambda row: (
+            split_long(contours[whole[row]], side[row], self.cfg.min_pixels // 2)
+            if whole[row] >= 0 and not tracked[row] else NO_PIECES))
+        return boxes, areas
