@@ -135,8 +135,8 @@ def main() -> None:
                              args.stage_clock == "cpu")
         waits = {busy: decoder_wait(video, args.frames, WORK_MS, busy) for busy in (False, True)}
     cores = len(os.sched_getaffinity(0))
-    print(f"video: {width}x{height} MJPG (vtrack synth --scene {args.scene}), {args.frames} frames; "
-          f"detect_width {cfg.detector.detect_width}")
+    print(f"video: {width}x{height} MJPG (vtrack synth --scene {args.scene}), "
+          f"{args.frames} frames; detect_width {cfg.detector.detect_width}")
     print(f"decode only : {n / decode.wall:8.1f} fps")
     print(f"tracked     : {n / track.wall:8.1f} fps")
     print(f"ratio tracked/decode: {decode.wall / track.wall:.3f}")

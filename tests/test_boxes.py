@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from vtrack.boxes import (centre, clip, edges, from_centre, in_image, intersection, iou,
+from vtrack.boxes import (centre, clip, contains, edges, from_centre, in_image, intersection, iou,
                           on_border, overlap_of_smaller, paired_iou, scale)
 
 
@@ -55,3 +55,10 @@ def test_in_image_and_on_border_of_a_100_x_50_picture():
     assert cut[1].tolist() == [[True, False], [False, False]]
     assert cut[2].tolist() == [[False, True], [False, True]]
     assert not cut[3].any()
+
+
+def test_contains_takes_the_left_and_top_edges_not_the_right_and_bottom():
+    boxes = np.array([[0.0, 0.0, 10.0, 5.0], [5.0, 5.0, 2.0, 2.0]])
+    points = np.array([[0.0, 0.0], [9.9, 4.9], [10.0, 2.0], [6.0, 6.0], [3.0, 5.0]])
+    assert contains(boxes, points).tolist() == [[True, True, False, False, False],
+                                                [False, False, False, True, False]]

@@ -45,6 +45,14 @@ def centre(boxes: np.ndarray) -> np.ndarray:
     return boxes[..., :2] + boxes[..., 2:] / 2
 
 
+def contains(boxes: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(N, K) whether box i (N, 4) holds point k (K, 2), left and top edges included,
+    right and bottom excluded."""
+    x, y = points[None, :, 0], points[None, :, 1]
+    return ((x >= boxes[:, None, 0]) & (x < boxes[:, None, 0] + boxes[:, None, 2])
+            & (y >= boxes[:, None, 1]) & (y < boxes[:, None, 1] + boxes[:, None, 3]))
+
+
 def edges(boxes: np.ndarray) -> np.ndarray:
     """(..., 4) edges x0, y0, x1, y1 of boxes (..., 4) x, y, w, h."""
     return np.concatenate([boxes[..., :2], boxes[..., :2] + boxes[..., 2:]], axis=-1)

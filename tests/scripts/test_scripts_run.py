@@ -94,8 +94,8 @@ def test_bench_tracker():
 
 @pytest.mark.slow
 def test_bench_batch():
-    """Two copies of a 20-frame video with 1 and 2 workers: a row per worker count with its videos per
-    minute and frames per second."""
+    """Two copies of a 20-frame video with 1 and 2 workers: a row per worker count with its
+    videos per minute and frames per second."""
     out = _run("scripts/bench_batch.py", "--videos", "2", "--frames", "20", "--copies")
     assert "2 copies of a synthetic video, 20 frames 640x360" in out
     rows = {int(_numbers(l)[0]): _numbers(l) for l in out.splitlines()

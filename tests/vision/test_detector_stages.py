@@ -409,10 +409,11 @@ def test_stabiliser_probe_switches_off_for_a_still_camera_only():
 
 def test_stabiliser_switches_back_on_when_a_still_camera_starts_moving():
     """A camera still through the probe, knocked 3 px right and 2 px down at frame 35 (wind
-    on the pole): the once-a-second checks (the 40th and 50th frames, 10 fps) find it moved twice
-    in a row and switch the stabiliser back on, and from then every frame is warped back
-    onto the reference, the image's content where it was. Without the check (`stabilise_recheck_seconds` 0) the frames pass through
-    unaligned for the rest of the video."""
+    on the pole): the once-a-second checks (the 40th and 50th frames, 10 fps) find it moved
+    twice in a row and switch the stabiliser back on, and from then every frame is warped
+    back onto the reference, the image's content where it was. Without the check
+    (`stabilise_recheck_seconds` 0) the frames pass through unaligned for the rest of the
+    video."""
     knock = np.float32([[1, 0, 3.0], [0, 1, 2.0]])
     inner = (slice(20, -20), slice(20, -20))
     for recheck in (1.0, 0.0):

@@ -52,8 +52,9 @@ TRACKER_STAGES = (("tracker predict", "predict"), ("tracker update", "update"))
 ORDER = (START, BACKGROUND, DECODE, *(name for name, _ in DETECTOR_STAGES),
          *(name for name, _ in TRACKER_STAGES), OUTPUTS)
 # the stages of `vtrack track`'s main thread when it overlaps the image stages (the rest)
-MAIN_THREAD = ("blobs", "pieces and large tracked blobs", "split merged blobs",
-               "neck split", "footprint split", "standing boxes", "tracker predict", "tracker update", OUTPUTS)
+MAIN_THREAD = ("blobs", "pieces and large tracked blobs", "split merged blobs", "neck split",
+               "footprint split", "standing boxes", "tracker predict", "tracker update",
+               OUTPUTS)
 # the image stages `vtrack track` runs in its first worker thread (MotionDetector.align);
 # the other image stages run in the second (subtract)
 ALIGN_THREAD = ("prepare (downscale, blur)", "stabilise", "gain compensation")

@@ -98,7 +98,8 @@ class FragmentJoiner:
             boxes = boxes.copy()
             for b in np.flatnonzero(per_box >= 2):
                 track, parts = conf[b], di[bi == b]
-                if cfg.whole_piece and self._one_is_whole(tracks, track, track_boxes[track], boxes[parts]):
+                if cfg.whole_piece and self._one_is_whole(tracks, track, track_boxes[track],
+                                                          boxes[parts]):
                     continue
                 held[track] = True
                 x0 = boxes[parts, :2].min(axis=0)

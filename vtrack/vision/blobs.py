@@ -11,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from vtrack.boxes import centre, contains
 from vtrack.errors import InputError
 
 MOTION_GAP = 2    # frames between the two images of the motion check
@@ -111,10 +112,7 @@ class BlobTests:
             changed = moving[y1, x1] - moving[y0, x1] - moving[y1, x0] + moving[y0, x0]
             moved = changed >= self.min_motion * bw * bh
             if still is not None and len(still):
-                c = still[:, :2] + still[:, 2:] / 2
-                moved |= ((c[None, :, 0] >= x0[:, None]) & (c[None, :, 0] < x1[:, None])
-                          & (c[None, :, 1] >= y0[:, None])
-                          & (c[None, :, 1] < y1[:, None])).any(1)
+                moved |= contains(np.column_stack([x0, y0, bw, bh]), centre(still)).any(1)
             ok &= moved
         return ok, count * self.unit <= self.max_area
 

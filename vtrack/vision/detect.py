@@ -432,28 +432,26 @@ class MotionDetector:
         cfg = self.cfg
         predicted = np.zeros((0, 4)) if predicted is None else predicted
         self._located += 1
-        if self.standing is not None or self.sizes is not None:
-            on_mask = onto_mask(predicted, fg.camera, self._sx, self._sy)
-            if self.standing is not None:
-                self._held[self._located] = self.standing(on_mask)
-            if self.sizes is not None:
-                self.sizes.add(on_mask)
+        on_mask = onto_mask(predicted, fg.camera, self._sx, self._sy)   # the mask's pixels
+        if self.standing is not None:
+            self._held[self._located] = self.standing(on_mask)
+        if self.sizes is not None:
+            self.sizes.add(on_mask)
         if fg.learning:
             return Detections.empty(fg.motion)
         contours, stats = find_blobs(fg.mask)
         ok, small = self.tests(stats, fg.moving, fg.held)
         if (cfg.group_pieces or cfg.area_cap_tracked) and len(predicted) and len(stats):
             contours, stats, ok, small = self._pieces(contours, stats, ok, small, fg,
-                                                      predicted)
+                                                      on_mask)
         boxes, areas, contours = kept_blobs(contours, stats, ok & small, self._sx, self._sy)
         whole = np.arange(len(boxes))   # the blob each row still is whole (-1: a piece)
         if cfg.split_merged and len(boxes) and len(predicted) >= 2:
-            boxes, areas, whole = self._split(boxes, areas, contours, predicted, fg.camera)
+            boxes, areas, whole = self._split(boxes, areas, contours, on_mask)
         if cfg.split_necks and len(boxes):
             boxes, areas, whole = self._necks(boxes, areas, contours, whole)
         if cfg.split_footprint and len(boxes) and self.sizes.coef is not None:
-            boxes, areas = self._footprint(boxes, areas, contours, whole, predicted,
-                                           fg.camera)
+            boxes, areas = self._footprint(boxes, areas, contours, whole, on_mask)
         ref_boxes, boxes = boxes, transform_boxes(fg.camera, boxes)  # -> this frame's pixels
         if cfg.stabilise_robust:   # the fit follows the camera: the sway is a few pixels
             boxes = border_edges_kept(ref_boxes, boxes, self.width, self.height)
@@ -461,13 +459,12 @@ class MotionDetector:
                           ChangedMap(fg.labels, self._sx, self._sy, fg.camera))
 
     def _pieces(self, contours: list[np.ndarray], stats: np.ndarray, ok: np.ndarray,
-                small: np.ndarray, fg: Foreground, predicted: np.ndarray
+                small: np.ndarray, fg: Foreground, pred: np.ndarray
                 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
-        """The blobs (mask pixels) and their tests read against the predicted boxes (this
-        frame's pixels): pieces of one vehicle joined, blobs over the area cap that a
-        predicted box explains passed (pieces.py)."""
+        """The blobs and their tests read against the predicted boxes `pred` (all in mask
+        pixels): pieces of one vehicle joined, blobs over the area cap that a predicted box
+        explains passed (pieces.py)."""
         cfg = self.cfg
-        pred = onto_mask(predicted, fg.camera, self._sx, self._sy)
         if cfg.group_pieces:
             n = len(stats)
             contours, stats = group_pieces(contours, stats, ok & small, pred)
@@ -499,13 +496,11 @@ class MotionDetector:
         return np.concatenate(out_b), np.concatenate(out_a), np.concatenate(out_w)
 
     def _split(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
-               predicted: np.ndarray, camera: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Blobs (full resolution, reference pixels) holding several predicted boxes (this
-        frame's pixels; `camera` maps the reference onto it) replaced by their pieces
-        (split.py). Also returns for each row the blob it is, whole (-1: a piece)."""
+               pred: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Blobs (full resolution, reference pixels) holding several predicted boxes `pred`
+        (mask pixels) replaced by their pieces (split.py). Also returns for each row the
+        blob it is, whole (-1: a piece)."""
         scale = np.array([self._sx, self._sy, self._sx, self._sy])
-        pred = onto_mask(predicted, camera, self._sx, self._sy)
 
         def cut(row: int) -> Pieces:
             held = holders(boxes[row] / scale, pred)
@@ -526,16 +521,14 @@ class MotionDetector:
             if whole[row] >= 0 else NO_PIECES))
 
     def _footprint(self, boxes: np.ndarray, areas: np.ndarray, contours: list[np.ndarray],
-                   whole: np.ndarray, predicted: np.ndarray, camera: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray]:
+                   whole: np.ndarray, pred: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Whole blobs (rows of `whole` >= 0: their contour's index; full resolution,
         reference pixels) longer than the vehicles at their place, and which no predicted
-        box (this frame's pixels) matches, replaced by their pieces cut at the waists
+        box `pred` (mask pixels) matches, replaced by their pieces cut at the waists
         (footprint.py)."""
         scale = np.array([self._sx, self._sy, self._sx, self._sy])
         side = self.sizes.side(centre(boxes / scale))
-        tracked = matched(boxes / scale, onto_mask(predicted, camera, self._sx, self._sy),
-                          *self.prepare.size)
+        tracked = matched(boxes / scale, pred, *self.prepare.size)
         boxes, areas, _ = self._divided(boxes, areas, whole, lambda row: (
             split_long(contours[whole[row]], side[row], self.cfg.min_pixels // 2)
             if whole[row] >= 0 and not tracked[row] else NO_PIECES))

@@ -29,7 +29,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from vtrack.boxes import centre, clip, intersection, iou
+from vtrack.boxes import centre, clip, contains, intersection, iou
 from vtrack.vision.split import holders
 
 GROW = 0.1        # a predicted box grown by this share of its size on each side
@@ -53,11 +53,7 @@ def group_pieces(contours: list[np.ndarray], stats: np.ndarray, alone: np.ndarra
         return contours, stats
     region = grown(priors, GROW)
     boxes = stats[:, :4]
-    c = centre(boxes)
-    within = ((c[:, None, 0] >= priors[None, :, 0])
-              & (c[:, None, 0] < priors[None, :, 0] + priors[None, :, 2])
-              & (c[:, None, 1] >= priors[None, :, 1])
-              & (c[:, None, 1] < priors[None, :, 1] + priors[None, :, 3]))
+    within = contains(priors, centre(boxes)).T
     share = intersection(boxes[:, None], region[None]) / np.maximum(
         boxes[:, None, 2] * boxes[:, None, 3], 1e-9)
     member = within & (share >= INSIDE) & (within.sum(axis=1, keepdims=True) == 1)
