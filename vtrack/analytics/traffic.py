@@ -36,6 +36,7 @@ from vtrack.analytics.vehicles import (CLASSES, MIN_LENGTH_SPEED, SPEED_SIGMA_MA
                                        VehicleRecord)
 from vtrack.analytics.zones import ZoneCounter
 from vtrack.fileio import append_csv, write_csv
+from vtrack.vision.appearance import VEHICLE_CLASSES
 from vtrack.tracking.tracker import FrameTracks
 
 HEADERS = {
@@ -59,7 +60,11 @@ class TrafficAnalytics:
     def __init__(self, out_dir: str | Path, width: int, height: int, fps: float,
                  lines: Sequence[CountLine] = (), zones: Sequence[Zone] = (),
                  calibration: Calibration | None = None, bin_seconds: float = 60.0,
-                 bin_settle_s: float = 120.0, gates: Sequence[Gate] = ()) -> None:
+                 bin_settle_s: float = 120.0, gates: Sequence[Gate] = (),
+                 looks_classes: Sequence[str] = ()) -> None:
+        """`looks_classes`: the classes an appearance detector gives (none with MOG2
+        alone): without a calibration, counts.csv and movements.csv then hold a row per
+        such class beside `all`."""
         if calibration is not None:
             calibration.check_frame_size(width, height)
         self.out = Path(out_dir)
@@ -77,7 +82,8 @@ class TrafficAnalytics:
         self.gates = GateCounter([g.name for g in gates],
                                  [g.pixels(width, height) for g in gates],
                                  [g.line is not None for g in gates])
-        self.classes = CLASSES if calibration is not None else ("all",)
+        self.classes = (tuple(dict.fromkeys((*CLASSES, *looks_classes)))
+                        if calibration is not None else ("all", *looks_classes))
         self.line_keys = [(l.name or str(k), d) for k, l in enumerate(self.lines)
                           for d in DIRECTIONS]
         self.bins = TimeBins(bin_seconds, bin_settle_s)             # counts.csv
@@ -91,8 +97,13 @@ class TrafficAnalytics:
         self.frame, self.time = 0, 0.0
 
     # ------------------------------------------------------------------- feeding
-    def add_frame(self, frame: int, time: float, ft: FrameTracks) -> None:
-        """One processed frame: its time (s), the tracks and the rows the tracker emitted."""
+    def add_frame(self, frame: int, time: float, ft: FrameTracks,
+                  looks: np.ndarray | None = None, looks_score: np.ndarray | None = None
+                  ) -> None:
+        """One processed frame: its time (s), the tracks and the rows the tracker emitted;
+        `looks` (K,) and `looks_score` (K,), per track of `ft.ids`, the appearance class
+        (index into vision.appearance.VEHICLE_CLASSES, -1 none) and score of its detection
+        this frame."""
         self.frame, self.time = frame, time
         for bins in (self.bins, self.movement_bins, self.speed_bins):
             bins.start(time)
@@ -106,6 +117,10 @@ class TrafficAnalytics:
             self._sample(ft)
             for tid in list(self._unresolved):
                 self._resolve_speeds(tid, final=False)
+        if looks is not None:
+            for tid, c, score in zip(ft.ids.tolist(), looks.tolist(), looks_score.tolist()):
+                if c >= 0:
+                    self._record(int(tid), frame, time).looks.add(VEHICLE_CLASSES[c], score)
         alive = set(ft.ids.tolist())
         for tid in [t for t in self.vehicles if t not in alive]:
             self._finish(tid)
@@ -186,15 +201,20 @@ class TrafficAnalytics:
         self._pending["zone_events.csv"].extend(ev.row() for ev in self.zones.end_track(tid))
         calibrated = self.calibration is not None
         cls = (rec.figures()[3] or "unknown") if calibrated else "all"
+        # without a calibration a class the appearance model knows counts beside `all`
+        counted = [cls] if calibrated or not rec.looks.votes else [cls, rec.looks.best()]
         for time, line, direction, speed in rec.crossings:
             key = self.line_keys[2 * line + DIRECTIONS.index(direction)]
-            self.bins.add(time, key, cls)
+            for c in counted:
+                self.bins.add(time, key, c)
             if calibrated and speed is not None and np.isfinite(speed):
                 for c in (cls, "all"):
                     self.speed_bins.add(time, key, c, 3.6 * speed)
         movement = self.gates.end_track(tid)
         if movement is not None:
-            self.movement_bins.add(movement.time, (movement.origin, movement.destination), cls)
+            for c in counted:
+                self.movement_bins.add(movement.time,
+                                       (movement.origin, movement.destination), c)
         self._pending["vehicles.csv"].append(rec.row(calibrated))
 
     # ------------------------------------------------------------------- writing
@@ -223,7 +243,7 @@ class TrafficAnalytics:
         self._pending["movements.csv"] += count_rows(movements, self.gates.pairs(),
                                                      self.classes)
         if self.calibration is not None:
-            self._pending["speeds.csv"] += speed_rows(speeds, self.line_keys, CLASSES)
+            self._pending["speeds.csv"] += speed_rows(speeds, self.line_keys, self.classes)
         for name, header in HEADERS.items():
             rows, self._pending[name] = self._pending[name], []
             if self._created:

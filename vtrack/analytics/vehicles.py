@@ -14,6 +14,10 @@ the camera one pixel is metres). A track with no such frame uses its other detec
   good frames (its other detected frames if it has no good one).
 - length_m and class: LengthFit (the footprint along travel, corrected for the height the box
   includes with the class's typical height; class from the length, CLASS_BOUNDS_M).
+- the appearance class: the class the appearance model gave the track's detections, their
+  scores summed per class (`Looks`). With both, `combined_class`: the appearance model
+  decides what length cannot tell apart (bicycle from motorcycle, bus from truck), the
+  length decides the rest (car, van, truck: van only from length).
 """
 
 from __future__ import annotations
@@ -38,6 +42,33 @@ CLASS_BOUNDS_M = (("motorcycle", 3.0), ("car", 5.1), ("van", 7.5), ("truck", mat
 CLASSES = tuple(name for name, _ in CLASS_BOUNDS_M)
 # Typical heights (roof, or rider's head), metres: they grow with the length classes.
 CLASS_HEIGHT_M = {"motorcycle": 1.4, "car": 1.5, "van": 2.3, "truck": 3.6}
+
+
+# classes the appearance model tells better than a length does
+LOOKS_DECIDE = ("bicycle", "motorcycle", "bus")
+
+
+def combined_class(metric: str, looks: str) -> str:
+    """The class of a vehicle from its length class `metric` and appearance class `looks`
+    ('' where unknown): the appearance class for two-wheelers and buses, else the length
+    class, else whichever is known."""
+    if looks in LOOKS_DECIDE or not metric:
+        return looks
+    return metric
+
+
+@dataclass
+class Looks:
+    """The appearance model's votes for one track: score summed per class."""
+
+    votes: dict[str, float] = field(default_factory=dict)
+
+    def add(self, cls: str, score: float) -> None:
+        self.votes[cls] = self.votes.get(cls, 0.0) + score
+
+    def best(self) -> str:
+        """The class with the largest summed score ('' with no vote)."""
+        return max(self.votes, key=self.votes.__getitem__) if self.votes else ""
 
 
 @dataclass
@@ -164,6 +195,7 @@ class VehicleRecord:
     good: Samples = field(default_factory=Samples)   # clear of the border, speed known well
     other: Samples = field(default_factory=Samples)
     crossings: list = field(default_factory=list)   # [time, line, direction, speed m/s|None]
+    looks: Looks = field(default_factory=Looks)
 
     def add_row(self, frame: int, time: float, detected: bool) -> None:
         self.last_frame, self.last_time = max(self.last_frame, frame), max(self.last_time, time)
@@ -184,14 +216,15 @@ class VehicleRecord:
         s = self.good if self.good.speed.n else self.other
         length_src = self.good if self.good.length.n else self.other
         length, cls = length_src.length.estimate()
-        return 3.6 * s.speed.mean, 3.6 * s.speed.max, length, cls
+        return 3.6 * s.speed.mean, 3.6 * s.speed.max, length, combined_class(
+            cls, self.looks.best())
 
     def row(self, calibrated: bool) -> list:
         """The vehicles.csv row."""
         head = [self.id, self.first_frame, self.last_frame, f"{self.first_time:.4f}",
                 f"{self.last_time:.4f}", self.detected_frames]
         if not calibrated:
-            return head + ["", "", "", ""]
+            return head + ["", "", "", self.looks.best()]
         mean, mx, length, cls = self.figures()
         fmt = lambda v, d: f"{v:.{d}f}" if math.isfinite(v) else ""  # noqa: E731
         return head + [fmt(mean, 2), fmt(mx, 2), fmt(length, 2), cls]

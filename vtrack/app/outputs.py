@@ -58,6 +58,10 @@ class TrackedFrame:
     tracks: FrameTracks     # the tracker's output; its rows may be of earlier frames
     ended: list[int]        # track ids whose last row came with this frame or before
     times: FrameTimes       # the time of any frame a row may still be of
+    # (K,) per confirmed track of `tracks`: the appearance class (index into
+    # vision.appearance.VEHICLE_CLASSES, -1 none) and score of this frame's detection
+    looks: np.ndarray | None = None
+    looks_score: np.ndarray | None = None
 
 
 class Sink(Protocol):
@@ -137,7 +141,7 @@ class TrafficSink:
         self.analytics = analytics
 
     def frame(self, f: TrackedFrame) -> None:
-        self.analytics.add_frame(f.index, f.time, f.tracks)
+        self.analytics.add_frame(f.index, f.time, f.tracks, f.looks, f.looks_score)
 
     def flush(self, final: bool = False) -> dict[str, Any]:
         return self.analytics.flush(final)
@@ -148,27 +152,35 @@ class TrafficSink:
 
 class DetectionsCsv:
     """detections.csv (--save-detections): the detector's boxes of every frame as
-    MOTChallenge detection rows `frame,-1,x,y,w,h,1,-1,-1,-1`, appended at each flush."""
+    MOTChallenge detection rows `frame,-1,x,y,w,h,conf,-1,-1,-1`, appended at each flush;
+    conf is the appearance score of a box the appearance model drew, 1 for a motion-only
+    blob."""
 
     def __init__(self, path: Path) -> None:
         self.file = GrowingFile(path)
         self._blocks: list[np.ndarray] = []
 
-    def add(self, index: int, boxes: np.ndarray) -> None:
-        """The boxes (D, 4) of frame `index`."""
+    def add(self, index: int, boxes: np.ndarray, scores: np.ndarray | None = None) -> None:
+        """The boxes (D, 4) of frame `index` and their conf (D,) (None: all 1)."""
         if len(boxes):
-            self._blocks.append(np.column_stack([np.full(len(boxes), index), boxes]))
+            conf = np.ones(len(boxes)) if scores is None else scores
+            self._blocks.append(np.column_stack([np.full(len(boxes), index), boxes, conf]))
 
     def frame(self, f: TrackedFrame) -> None:
         """Detections come through `add`."""
 
     def flush(self, final: bool = False) -> dict[str, Any]:
-        rows = np.concatenate(self._blocks) if self._blocks else np.zeros((0, 5))
+        rows = np.concatenate(self._blocks) if self._blocks else np.zeros((0, 6))
         self._blocks = []
         self.file.write(final=["".join(f"{int(r[0])},-1,{r[1]:.2f},{r[2]:.2f},{r[3]:.2f},"
-                                       f"{r[4]:.2f},1,-1,-1,-1\n"
+                                       f"{r[4]:.2f},{_conf(r[5])},-1,-1,-1\n"
                                        for r in rows.tolist()).encode()])
         return {}
 
     def close(self) -> None:
         self.file.close()
+
+
+def _conf(score: float) -> str:
+    """detections.csv's conf: 1 as before for motion blobs, a score to 4 decimals."""
+    return "1" if score >= 1.0 else f"{score:.4f}"

@@ -49,12 +49,14 @@ MODULE_STAGES = (   # (table name, function of vtrack.vision.detect called by na
     ("standing hold (labels)", "held_foreground"),
 )
 TRACKER_STAGES = (("tracker predict", "predict"), ("tracker update", "update"))
-ORDER = (START, BACKGROUND, DECODE, *(name for name, _ in DETECTOR_STAGES),
+APPEARANCE = "appearance model (YOLOX)"   # the fused detector's passes (vision/hybrid.py)
+ORDER = (START, BACKGROUND, DECODE, *(name for name, _ in DETECTOR_STAGES), APPEARANCE,
          *(name for name, _ in TRACKER_STAGES), OUTPUTS)
 # the stages of `vtrack track`'s main thread when it overlaps the image stages (the rest)
 MAIN_THREAD = ("blobs", "pieces and large tracked blobs", "split merged blobs", "neck split",
                "footprint split", "standing boxes", "tracker predict", "tracker update",
                OUTPUTS)
+# (without --profile the appearance passes run in a thread of their own)
 # the image stages `vtrack track` runs in its first worker thread (MotionDetector.align);
 # the other image stages run in the second (subtract)
 ALIGN_THREAD = ("prepare (downscale, blur)", "stabilise", "gain compensation")
@@ -145,10 +147,14 @@ def _replace(owner: Any, path: str, times: StageTimes, name: str) -> None:
 
 @contextlib.contextmanager
 def instrumented(detector: Any, tracker: Any, times: StageTimes) -> Iterator[None]:
-    """Inside the block every stage call of `detector` (a MotionDetector) and `tracker`
-    adds its wall time to `times`; stages the detector lacks (switched off) are skipped."""
+    """Inside the block every stage call of `detector` (a MotionDetector, or a fused
+    detector: its MotionDetector's and its appearance passes) and `tracker` adds its wall
+    time to `times`; stages the detector lacks (switched off) are skipped."""
     from vtrack.vision import detect as detect_module
 
+    if hasattr(detector, "model"):
+        _replace(detector.model, "detect", times, APPEARANCE)
+        detector = detector.motion
     for name, path in DETECTOR_STAGES:
         if path is not None:
             _replace(detector, path, times, name)

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from vtrack import __version__
 from vtrack.app.config import AppConfig
 from vtrack.analytics.calibration import Calibration
@@ -32,6 +34,7 @@ from vtrack.app.readonce import fits, read_once, sample_numbers
 from vtrack.errors import InputError
 from vtrack.fileio import replace_dir, write_json
 from vtrack.tracking.tracker import FrameTracks, Tracker
+from vtrack.vision.appearance import VEHICLE_CLASSES
 from vtrack.io.sources import parse_source
 
 
@@ -110,7 +113,7 @@ class TrackJob:
             return self._run(start)
 
     def _run(self, start: profile.Timing) -> dict[str, Any]:
-        from vtrack.vision.detect import MotionDetector
+        from vtrack.vision.hybrid import make_detector
         from vtrack.io.video import VideoReader
 
         self.reader = VideoReader(self.source, max_frames=self.opts.max_frames,
@@ -121,7 +124,8 @@ class TrackJob:
             self.analytics = TrafficAnalytics(
                 self.out, self.info.width, self.info.height, self.info.fps,
                 self.cfg.count_lines, self.cfg.zones, self.opts.calibration,
-                self.opts.bin_seconds, gates=self.cfg.gates)
+                self.opts.bin_seconds, gates=self.cfg.gates,
+                looks_classes=VEHICLE_CLASSES if self.cfg.detector.kind != "mog2" else ())
         except BaseException:
             self.reader.close()
             raise
@@ -129,11 +133,12 @@ class TrackJob:
             self.opts.warn(warning)
         self._prepare_out_dir()
         parts: list[Any] = []   # progress bar, video writer, rerun logger: closed at the end
+        detector: Any = None    # its appearance worker (if any) stops at the end
         try:
             roi = self.cfg.roi.pixels(self.info.width, self.info.height) if self.cfg.roi \
                 else None
-            detector = MotionDetector(self.cfg.detector, self.info.width, self.info.height,
-                                      self.info.fps, roi)
+            detector = make_detector(self.cfg.detector, self.info.width, self.info.height,
+                                     self.info.fps, roi, threaded=self.times is None)
             self._wanted = self._background_sample_numbers(detector)
             self._ahead = bool(self._wanted) and self._read_once(detector)
             if self._wanted and not self._ahead:
@@ -155,7 +160,7 @@ class TrackJob:
         except InputError as exc:   # the source failed (or was lost) after the first frame
             self.stopped_by, self.error = "error", str(exc)
         finally:
-            summary = self._finish(parts)
+            summary = self._finish(parts + [detector])
             if self.times is not None:
                 write_json(self.out / "profile.json", self._profile(start))
         if self.error:
@@ -176,13 +181,14 @@ class TrackJob:
                 predicted = tracker.predict(frame.time, fg.motion)
                 dets = detector.locate(fg, predicted)
                 ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes,
-                                    dets.changed)
+                                    dets.changed, dets.seen)
                 self.frames = frame.index
                 with self._stage(profile.OUTPUTS):
                     if self.detections is not None:
-                        self.detections.add(frame.index, dets.boxes)
+                        self.detections.add(frame.index, dets.boxes, dets.score)
                     times.add(frame.index, frame.time)
-                    tf = TrackedFrame(frame.index, frame.time, ft, ends.update(ft), times)
+                    tf = TrackedFrame(frame.index, frame.time, ft, ends.update(ft), times,
+                                      *looks(ft, dets))
                     for sink in self.sinks:
                         sink.frame(tf)
                     self.trails.update(tf)
@@ -215,6 +221,8 @@ class TrackJob:
                                    lambda: self._stage(profile.BACKGROUND))
             else:
                 frames = ((frame, False) for frame in source)
+            if hasattr(detector, "request"):   # the appearance model sees each frame read
+                frames = requested(frames, detector)
             if self.times is None:
                 # closing: the worker stops with the loop, also when the loop body raises
                 yield stack.enter_context(contextlib.closing(segmented(frames, detector)))
@@ -284,7 +292,7 @@ class TrackJob:
         (readonce.read_once): when no output needs the full frames the detector's look-ahead
         drops, and that look-ahead fits in memory."""
         full_frames = self.opts.save_frames or self.opts.save_video or self.opts.rerun \
-            or self.opts.rerun_spawn
+            or self.opts.rerun_spawn or hasattr(detector, "request")
         return not full_frames and fits(self._wanted, detector.prepare.size)
 
     def _background_samples(self) -> Iterator[Any]:
@@ -447,6 +455,27 @@ def segmented(frames: Iterable[tuple[Any, bool]], detector: Any
             yield done, foreground.result()
         if failure is not None:
             raise failure
+
+
+def looks(ft: FrameTracks, dets: Any) -> tuple[Any, Any]:
+    """Per confirmed track, the appearance class and score of the detection that updated it
+    this frame (-1 and 0 where none, or a motion-only blob)."""
+    det = ft.detection_of
+    used = det >= 0
+    cls = np.full(len(det), -1)
+    score = np.zeros(len(det))
+    cls[used], score[used] = dets.cls[det[used]], dets.score[det[used]]
+    score[cls < 0] = 0.0
+    return cls, score
+
+
+def requested(frames: Iterable[tuple[Any, bool]], detector: Any
+              ) -> Iterator[tuple[Any, bool]]:
+    """`frames`, each handed to `detector.request` (its appearance pass starts in the
+    detector's worker) as it is read, in this thread, before it goes on."""
+    for frame, prepared in frames:
+        detector.request(frame.image)
+        yield frame, prepared
 
 
 def track_video(video: str | Path, out_dir: str | Path, cfg: AppConfig,

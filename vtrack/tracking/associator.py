@@ -44,6 +44,7 @@ class Association:
     split: np.ndarray        # (N,) tracks whose box held several vehicles
     duplicates: np.ndarray   # tracks following the same vehicle as an older track
     gaps: GapColumns         # the fragment stage's gap record after this frame
+    origin: np.ndarray       # (D,) the input detection each of `boxes` is (fragments.py)
 
 
 class Associator:
@@ -79,7 +80,8 @@ class Associator:
         mt, md, consumed, duplicates = resolve_shared(cfg, tracks, track_boxes, mt, md, boxes)
         mt, md = reacquire(cfg, tracks, track_boxes, mt, md, consumed, duplicates, centers,
                            boxes)
-        return Association(centers, boxes, mt, md, consumed, f.split, duplicates, f.gaps)
+        return Association(centers, boxes, mt, md, consumed, f.split, duplicates, f.gaps,
+                           f.origin)
 
 
 def resolve_shared(cfg: TrackerConfig, tracks: TrackTable, track_boxes: np.ndarray,

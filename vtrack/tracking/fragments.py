@@ -67,6 +67,7 @@ class Fragments:
     boxes: np.ndarray      # (D', 4)
     split: np.ndarray      # (N,) tracks whose box held several vehicles
     gaps: GapColumns       # the gap record after this frame
+    origin: np.ndarray     # (D',) the input detection each row is (a joined one: its first)
 
 
 class FragmentJoiner:
@@ -88,6 +89,7 @@ class FragmentJoiner:
         split = np.zeros(len(tracks), dtype=bool)
         conf = tracks.confirmed
         held = np.zeros(len(tracks), dtype=bool)
+        origin = np.arange(len(centers))
         if len(conf) and len(centers) >= 2:
             bi, di = points_in_boxes(centers, track_boxes[conf], cfg.box_candidates)
             claims = np.bincount(di, minlength=len(centers))
@@ -110,12 +112,12 @@ class FragmentJoiner:
                     continue
                 boxes[parts[0]] = [*x0, *(x1 - x0)]
                 keep[parts[1:]] = False
-            boxes = boxes[keep]
+            boxes, origin = boxes[keep], origin[keep]
             centers = centre(boxes)
         gaps.gap_seen[held] = t
         holding = gaps.gap_road & (t - gaps.gap_seen <= cfg.split_hold_seconds + 1e-9)
         gaps.gap_t[(~held & ~holding) | split] = np.nan
-        return Fragments(centers, boxes, split, gaps)
+        return Fragments(centers, boxes, split, gaps, origin)
 
     def _one_is_whole(self, tracks: TrackTable, track: int, predicted: np.ndarray,
                       pieces: np.ndarray) -> bool:

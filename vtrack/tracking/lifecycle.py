@@ -37,10 +37,12 @@ class LifeColumns(Columns):
     id: np.ndarray         # (N,) public id, 0 while tentative
     uid: np.ndarray        # (N,) internal id, unique for the run
     dup_t: np.ndarray      # (N,) since when it has shared an older track's detection (nan)
+    seen: np.ndarray       # (N,) measured at least once by a box the appearance model drew
 
     LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {
         "origin": ((4,), float), "last_box": ((4,), float), "hitmask": ((), np.int64),
-        "standing": ((), bool), "id": ((), int), "uid": ((), int), "dup_t": ((), float)}
+        "standing": ((), bool), "id": ((), int), "uid": ((), int), "dup_t": ((), float),
+        "seen": ((), bool)}
 
     def warp(self, m: np.ndarray) -> None:
         """Box corners map by m (the boxes stay axis-aligned)."""
@@ -79,7 +81,7 @@ class Initiator:
         self.next_uid += k
         return LifeColumns(origin, origin.copy(), np.zeros(k, dtype=np.int64),
                            np.zeros(k, dtype=bool), np.zeros(k, dtype=int), uid,
-                           np.full(k, np.nan))
+                           np.full(k, np.nan), np.zeros(k, dtype=bool))
 
 
 def record_hits(tracks: TrackTable, hit: np.ndarray, window: int, stand_speed: float
@@ -162,10 +164,11 @@ class Confirmer:
         its window that moves: an edge of its detected box has moved `confirm_motion` box
         scales from where it was first seen (an edge, not the centre: a big vehicle coming
         into view at the image border grows there, its centre moves at half its speed;
-        swaying leaves and flicker go nowhere)."""
+        swaying leaves and flicker go nowhere), or that the appearance model has seen (a
+        vehicle by its looks, standing or not: a queue from the first frame)."""
         cfg = self.cfg
         moved = (np.abs(tracks.last_box - tracks.origin).max(axis=1)
-                 >= cfg.confirm_motion * tracks.scale)
+                 >= cfg.confirm_motion * tracks.scale) | tracks.seen
         ready = ((tracks.id == 0) & eligible & hit & moved
                  & (np.bitwise_count(tracks.hitmask) >= self.hits))
         new = np.flatnonzero(ready)

@@ -55,7 +55,8 @@ class FrameTracks:
     covariances: np.ndarray    # (K, 6, 6)
     innovations: np.ndarray    # (K,) NIS of this frame's update (nan when coasted)
     rows: np.ndarray           # (R, 7) ROW_COLUMNS to write (incl. rows back-filled later)
-    detection_of: np.ndarray   # (K,) index of the detection used (-1 when coasted)
+    detection_of: np.ndarray   # (K,) index of the input detection used (-1 when coasted;
+                               # a joined blob: its first piece)
     size_rates: np.ndarray     # (K, 2) d(w, h)/dt of the box, px/s
 
 
@@ -120,11 +121,13 @@ class Tracker:
         return from_centre(tracks.x[conf, :2], tracks.size[conf])
 
     def update(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
-               changed: ChangedShare | None = None) -> FrameTracks:
+               changed: ChangedShare | None = None, seen: np.ndarray | None = None
+               ) -> FrameTracks:
         """Assimilate frame `frame`'s detections (centres (D, 2), boxes (D, 4)) into the
         tracks predicted to its time t. `changed`, when the detector has one, gives the share
         of any box (K, 4) that it saw change (vision/changed.py): the associator reads the
-        gap between two pieces of a blob with it."""
+        gap between two pieces of a blob with it. `seen` (D,) marks the boxes an appearance
+        model drew (a vehicle by its looks: lifecycle.Confirmer)."""
         centers = np.asarray(centers, dtype=float).reshape(-1, 2)
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
         tracks, W, H = self.tracks, self.width, self.height
@@ -143,6 +146,10 @@ class Tracker:
         innov_new, _ = self._assimilate(new, a.boxes[started], t, np.zeros(len(new), bool))
         hit = np.zeros(len(tracks), dtype=bool)
         hit[a.tracks] = hit[new] = True
+        if seen is not None and len(a.origin):
+            by_app = np.asarray(seen, dtype=bool)[a.origin]
+            tracks.seen[a.tracks[by_app[a.detections]]] = True
+            tracks.seen[new[by_app[started]]] = True
         record_hits(tracks, hit, self.confirmer.window, self.cfg.stand_speed)
         # delete (decide), confirm
         inside, alive = self.deleter.fate(tracks, t, a.duplicates)
@@ -157,7 +164,7 @@ class Tracker:
         keep = inside & alive
         self._delete(~keep)
         det_of = np.full(len(keep), -1)
-        det_of[a.tracks], det_of[new] = a.detections, started
+        det_of[a.tracks], det_of[new] = a.origin[a.detections], a.origin[started]
         nis = np.full(len(keep), np.nan)
         nis[a.tracks], nis[new] = innov, innov_new
         return self._frame_tracks(rows, filtered[keep], hit[keep], nis[keep], det_of[keep])

@@ -2,8 +2,10 @@
 
 Confirmed tracks: solid box in the track's colour with its id; coasting tracks (no detection
 this frame, drawn at the prediction): thin dashed grey box tagged "coast"; trails in the
-track's colour; detections: small crosses; counting lines with their forward/backward
-counts; the frame number. Everything is plain OpenCV drawing on one copy of the frame.
+track's colour; detections: small crosses (motion-only blobs), and for the boxes the
+appearance model drew a thin box with the class and score, cyan where motion saw the
+vehicle too, orange where only appearance did (a standing vehicle); counting lines with
+their forward/backward counts; the frame number. Everything is plain OpenCV drawing on one copy of the frame.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from vtrack.vision.detect import Detections
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 COAST_BGR = (170, 170, 170)
 DETECTION_BGR = (0, 255, 255)
+PROVENANCE_BGR = {1: (0, 140, 255), 2: (255, 255, 0)}   # appearance only, both (fusion.py)
 LINE_BGR = (255, 0, 255)
 TEXT_BGR = (255, 255, 255)
 
@@ -83,6 +86,7 @@ def draw_frame(image: np.ndarray, *, ids: Sequence[int], boxes: np.ndarray | Seq
         for cx, cy in np.round(detections.centers).astype(int):
             cv2.drawMarker(out, (int(cx), int(cy)), DETECTION_BGR, cv2.MARKER_CROSS,
                            6 + 2 * thick, 1)
+        _draw_looks(out, detections, font)
     for tid, box, coast in zip(ids, np.asarray(boxes, dtype=np.float64).reshape(-1, 4),
                                coasted):
         x0, y0 = round(box[0]), round(box[1])
@@ -101,6 +105,22 @@ def draw_frame(image: np.ndarray, *, ids: Sequence[int], boxes: np.ndarray | Seq
                LINE_BGR, font, 1)
     _label(out, f"frame {frame_index}", 0, 0, TEXT_BGR, font, 1)
     return out
+
+
+def _draw_looks(out: np.ndarray, dets: Detections, font: float) -> None:
+    """The appearance model's boxes: thin, coloured by provenance, with class and score."""
+    from vtrack.vision.appearance import VEHICLE_CLASSES
+
+    for box, src, cls, score in zip(dets.boxes, dets.source, dets.cls, dets.score):
+        if src == 0:
+            continue
+        x0, y0 = round(box[0]), round(box[1])
+        x1, y1 = round(box[0] + box[2]), round(box[1] + box[3])
+        colour = PROVENANCE_BGR[int(src)]
+        cv2.rectangle(out, (x0, y0), (x1, y1), colour, 1)
+        name = VEHICLE_CLASSES[cls] if cls >= 0 else "?"
+        cv2.putText(out, f"{name} {score:.2f}", (x0, min(y1 + 10, out.shape[0] - 2)), FONT,
+                    0.6 * font, colour, 1, cv2.LINE_AA)
 
 
 def save_jpeg(path: str | os.PathLike, image: np.ndarray, quality: int = 90) -> None:

@@ -81,8 +81,23 @@ def _f(default: Any, help_: str) -> Any:
 
 @dataclass
 class DetectorConfig:
-    """MOG2 background-subtraction detector ([detector])."""
+    """The detector ([detector]): MOG2 background subtraction, an appearance model, or both
+    fused (hybrid.py)."""
 
+    kind: str = _f("mog2", "which detector: \"mog2\" (background subtraction alone: "
+                             "moving vehicles), \"appearance\" (the appearance model "
+                             "alone, every frame) or \"hybrid\" (MOG2 blobs every frame, "
+                             "fused with appearance boxes: standing, queued and merged "
+                             "vehicles; docs/DETECTOR.md)")
+    appearance_model: str = _f("", "a YOLOX-format ONNX model (COCO classes); empty: the "
+                                   "YOLOX-Nano shipped inside vtrack")
+    appearance_seconds: float = _f(0.2, "hybrid: the appearance model looks at the whole "
+                                        "frame every this many seconds of video (every "
+                                        "frame of a video slower than 1 / this; between "
+                                        "passes the boxes of vehicles that stand are "
+                                        "held)")
+    appearance_score: float = _f(0.3, "smallest appearance score (objectness x class) "
+                                      "kept")
     history: int = _f(500, "MOG2 history: frames the background model remembers")
     var_threshold: float = _f(16.0, "MOG2 squared Mahalanobis distance for foreground")
     var_min: float = _f(16.0, "MOG2 floor on a pixel's variance (grey levels^2): codec and "
@@ -201,7 +216,12 @@ class DetectorConfig:
 
     def validate(self) -> None:
         """Raise ValueError naming the first out-of-range field."""
+        if self.kind not in ("hybrid", "mog2", "appearance"):
+            raise ValueError(f"detector.kind must be \"hybrid\", \"mog2\" or "
+                             f"\"appearance\", not {self.kind!r}")
         checks = {
+            "appearance_seconds": self.appearance_seconds >= 0,
+            "appearance_score": 0 < self.appearance_score <= 1,
             "history": self.history >= 1,
             "var_threshold": self.var_threshold > 0,
             "var_min": self.var_min > 0,
@@ -250,9 +270,28 @@ class Detections:
     motion: np.ndarray = field(default_factory=lambda: IDENTITY.copy())
     # the share of any box that MOG2 saw change (changed.py); None without a frame
     changed: ChangedMap | None = None
+    # (K,) provenance (fusion.py: 0 motion, 1 appearance, 2 both), score (1 for motion
+    # blobs), class (index into appearance.VEHICLE_CLASSES, -1 unknown); None: all motion
+    source: np.ndarray | None = None
+    score: np.ndarray | None = None
+    cls: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = len(self.areas)
+        if self.source is None:
+            self.source = np.zeros(n, dtype=int)
+        if self.score is None:
+            self.score = np.ones(n)
+        if self.cls is None:
+            self.cls = np.full(n, -1, dtype=int)
 
     def __len__(self) -> int:
         return len(self.areas)
+
+    @property
+    def seen(self) -> np.ndarray:
+        """(K,) the boxes the appearance model drew: whole vehicles."""
+        return self.source > 0
 
     @staticmethod
     def empty(motion: np.ndarray | None = None) -> Detections:
@@ -343,6 +382,9 @@ class MotionDetector:
     def frames(self) -> int:
         """Frames seen so far."""
         return self.background.frames
+
+    def close(self) -> None:
+        """Nothing to release (the fused detector stops its worker here)."""
 
     def initialise(self, images: Iterable[np.ndarray], prepared: bool = False) -> None:
         """Start the background model from `images` (frames sampled across the first

@@ -123,7 +123,9 @@ class TrackLogger:
             rec.log("foreground", rr.Image(foreground).compress(jpeg_quality=80))
         rec.log("camera/detections", rr.Boxes2D(array=dets.boxes,
                                                 array_format=rr.Box2DFormat.XYWH,
-                                                colors=(200, 200, 200), radii=0.5))
+                                                colors=detection_colours(dets),
+                                                labels=detection_labels(dets),
+                                                radii=0.5))
         rec.log("camera/detections/centroids", rr.Points2D(dets.centers, radii=1.5,
                                                             colors=(255, 255, 255)))
         rec.log("metrics/tracks", rr.Scalars(len(ft.ids)))
@@ -275,3 +277,21 @@ def log_filter_run(times: np.ndarray, estimates: np.ndarray, covariances: np.nda
         rec.log("plane/estimate/ellipse", rr.LineStrips2D([ellipse_points(x[:2], P[:2, :2])]))
     rec.flush()
     rec.disconnect()
+
+
+# detection colours by provenance (vision/fusion.py): motion grey, appearance orange, both cyan
+PROVENANCE_RGB = np.array([(200, 200, 200), (255, 140, 0), (0, 255, 255)], dtype=np.uint8)
+
+
+def detection_colours(dets: Any) -> np.ndarray:
+    """(K, 3) RGB per detection: its provenance's colour."""
+    return PROVENANCE_RGB[np.asarray(dets.source, dtype=int)]
+
+
+def detection_labels(dets: Any) -> list[str]:
+    """Per detection: its provenance, and for an appearance box its class and score."""
+    from vtrack.vision.appearance import VEHICLE_CLASSES
+    from vtrack.vision.fusion import PROVENANCE
+
+    return [PROVENANCE[s] if c < 0 else f"{PROVENANCE[s]} {VEHICLE_CLASSES[c]} {p:.2f}"
+            for s, c, p in zip(dets.source.tolist(), dets.cls.tolist(), dets.score.tolist())]

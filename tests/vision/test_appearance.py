@@ -1,0 +1,261 @@
+"""The appearance detector (vision/appearance.py), the fusion of its boxes with MOG2's blobs
+(vision/fusion.py) and the fused detector in `vtrack track` (vision/hybrid.py): the shipped
+model on a real frame, its errors, the split of a merged blob, provenance and class through
+to the output files."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from vtrack.cli import main
+from vtrack.errors import InputError
+from vtrack.vision.appearance import (SHIPPED_SHA256, VEHICLE_CLASSES, AppearanceBoxes,
+                                      AppearanceModel, decode, grid, shipped_model,
+                                      with_riders)
+from vtrack.vision.fusion import APPEARANCE, BOTH, MOTION, fuse
+
+ROOT = Path(__file__).resolve().parents[2]
+HANOI = ROOT.parent / "shared" / "videos" / "hanoi_crossroads_queue.mp4"
+
+
+def _frame(path: Path, index: int) -> np.ndarray:
+    cap = cv2.VideoCapture(str(path))
+    for _ in range(index):
+        ok, image = cap.read()
+        assert ok
+    cap.release()
+    return image
+
+
+@pytest.fixture(scope="module")
+def model() -> AppearanceModel:
+    return AppearanceModel()
+
+
+def _app(boxes: list[list[float]], classes: list[str], scores: list[float] | None = None
+         ) -> AppearanceBoxes:
+    return AppearanceBoxes(np.array(boxes, float).reshape(-1, 4),
+                           np.array(scores or [0.8] * len(boxes)),
+                           np.array([VEHICLE_CLASSES.index(c) for c in classes], int))
+
+
+# ------------------------------------------------------------------ the model
+
+
+def test_shipped_model_is_the_recorded_file():
+    """The model inside the package is the file of ../shared/models/SOURCE.md, with its
+    licence and notice beside it."""
+    import hashlib
+
+    path = shipped_model()
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == SHIPPED_SHA256
+    assert (path.parent / "LICENSE.yolox_nano.txt").read_text().startswith(" ") or \
+        "Apache License" in (path.parent / "LICENSE.yolox_nano.txt").read_text()
+    assert "3d4f1119d0694200671c08069ecb847aa0d8495a" in (path.parent / "NOTICE.md").read_text()
+
+
+def test_wheel_carries_the_model(tmp_path):
+    """`pip install .` carries the model: the wheel built from the project holds it, its
+    licence and its notice."""
+    out = tmp_path / "wheel"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w",
+                    str(out), str(ROOT)], check=True, capture_output=True, timeout=600)
+    names = zipfile.ZipFile(next(out.glob("vtrack-*.whl"))).namelist()
+    for f in ("yolox_nano.onnx", "LICENSE.yolox_nano.txt", "NOTICE.md"):
+        assert f"vtrack/models/{f}" in names
+
+
+def test_decode_follows_yoloxs_grid():
+    """One raw row at a known cell decodes to the box YOLOX's head means: centre (dx + i) s,
+    size exp(lw) s; score objectness x class."""
+    cells, strides = grid(416)
+    assert len(strides) == 52 * 52 + 26 * 26 + 13 * 13
+    raw = np.zeros((len(strides), 85), np.float32)
+    row = 52 * 52 + 26 * 3 + 5          # stride 16, cell i=5, j=3
+    raw[row, :5] = [0.5, 0.25, np.log(4.0), np.log(2.0), 0.9]
+    raw[row, 5 + 2] = 0.8               # COCO 2: car
+    boxes, scores, coco = decode(raw, cells, strides, 0.3)
+    assert coco.tolist() == [2]
+    np.testing.assert_allclose(scores, [0.72], rtol=1e-6)
+    cx, cy, w, h = (5.5 * 16), (3.25 * 16), 64.0, 32.0
+    np.testing.assert_allclose(boxes[0], [cx - w / 2, cy - h / 2, w, h], rtol=1e-6)
+
+
+def test_rider_is_part_of_the_motorcycle_and_pedestrians_are_dropped():
+    """A person box on a motorcycle widens the motorcycle's box; a person on none is not a
+    road user; the car stays a car."""
+    boxes = np.array([[100, 120, 30, 40], [102, 95, 26, 50], [300, 100, 15, 40],
+                      [200, 100, 60, 40]], float)
+    out = with_riders(boxes, np.array([0.8, 0.7, 0.9, 0.6]), np.array([3, 0, 0, 2]))
+    assert [VEHICLE_CLASSES[c] for c in out.classes] == ["motorcycle", "car"]
+    np.testing.assert_allclose(out.boxes[0], [100, 95, 30, 65])
+
+
+@pytest.mark.skipif(not HANOI.exists(), reason=f"real clip not available: {HANOI}")
+def test_shipped_model_finds_the_standing_queue(model):
+    """Frame 30 of the real crossroads, at the red light: the van (COCO calls it a bus or a
+    car) at the bottom left and the queued riders are found by appearance, though none of
+    them moves; no person is a road user of its own."""
+    app = model.detect(_frame(HANOI, 30))
+    names = [VEHICLE_CLASSES[c] for c in app.classes]
+    assert names.count("motorcycle") >= 6
+    centres = app.boxes[:, :2] + app.boxes[:, 2:] / 2
+    van = (centres[:, 0] < 200) & (centres[:, 1] > 300) & (app.boxes[:, 2] > 100)
+    assert van.any()
+    assert set(names) <= set(VEHICLE_CLASSES)
+    assert np.all((app.scores >= 0.3) & (app.scores <= 1))
+
+
+@pytest.mark.skipif(not HANOI.exists(), reason=f"real clip not available: {HANOI}")
+def test_opencv_dnn_agrees_with_onnxruntime(model):
+    """The fallback engine (OpenCV DNN) gives the same boxes within float rounding."""
+    image = _frame(HANOI, 30)
+    a, b = model.detect(image), AppearanceModel(engine="opencv").detect(image)
+    assert len(a) == len(b) and a.classes.tolist() == b.classes.tolist()
+    np.testing.assert_allclose(a.boxes, b.boxes, atol=0.05)
+    np.testing.assert_allclose(a.scores, b.scores, atol=1e-4)
+
+
+def _onnx_model(path: Path, classes: int | None) -> Path:
+    """A tiny ONNX model with a 1x3x416x416 input: YOLOX's output rows with `classes`
+    class scores (a constant), or (None) the input passed through (not YOLOX)."""
+    onnx = pytest.importorskip("onnx")
+    from onnx import TensorProto, helper
+
+    x = helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, 416, 416])
+    if classes is None:
+        y = helper.make_tensor_value_info("output", TensorProto.FLOAT, [1, 3, 416, 416])
+        nodes = [helper.make_node("Identity", ["images"], ["output"])]
+        inits = []
+    else:
+        shape = [1, 3549, 5 + classes]
+        y = helper.make_tensor_value_info("output", TensorProto.FLOAT, shape)
+        nodes = [helper.make_node("ReduceMean", ["images"], ["m"], keepdims=0),
+                 helper.make_node("Expand", ["m", "shape"], ["output"])]
+        inits = [helper.make_tensor("shape", TensorProto.INT64, [3], shape)]
+    graph = helper.make_graph(nodes, "g", [x], [y], initializer=inits)
+    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    m.ir_version = 8
+    onnx.save(m, str(path))
+    return path
+
+
+def _track_error(tmp_path: Path, capsys, synth_video, model_path: str) -> str:
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text(f'[detector]\nkind = "hybrid"\nappearance_model = "{model_path}"\n')
+    code = main(["track", str(synth_video(0) / "video.avi"), "--out", str(tmp_path / "r"),
+                 "--config", str(cfg), "--quiet", "--max-frames", "5"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert err.startswith("error: ") and "\n" not in err and "Traceback" not in err
+    return err
+
+
+@pytest.mark.parametrize("case", ["missing", "corrupt", "not-yolox", "no-vehicles"])
+def test_bad_model_is_one_error_line(tmp_path, capsys, synth_video, case):
+    """A missing, corrupt or non-YOLOX model, or one without COCO's vehicle classes: one
+    `error:` line naming the file, exit 2."""
+    path = tmp_path / "model.onnx"
+    if case == "corrupt":
+        path.write_bytes(b"\x08\x07garbage" * 100)
+    elif case == "not-yolox":
+        _onnx_model(path, None)
+    elif case == "no-vehicles":
+        _onnx_model(path, 3)
+    err = _track_error(tmp_path, capsys, synth_video, str(path))
+    assert str(path) in err
+    if case == "no-vehicles":
+        assert "classes" in err
+
+
+def test_a_yolox_format_model_of_any_class_layout_is_read(tmp_path):
+    """A YOLOX-format model with COCO's 80 classes loads (its input size read from the
+    model); its output of constants gives no box above the score floor."""
+    m = AppearanceModel(_onnx_model(tmp_path / "m.onnx", 80), min_score=0.99)
+    assert m.side == 416
+    assert len(m.detect(np.zeros((90, 160, 3), np.uint8))) == 0
+
+
+# ------------------------------------------------------------------ fusion
+
+
+def test_merged_blob_is_split_along_the_appearance_boxes():
+    """One blob holding a car and a motorcycle (and a row of three riders in another) is
+    replaced by their appearance boxes, marked as seen by both."""
+    blobs = np.array([[100, 100, 120, 50], [300, 100, 90, 40]], float)
+    app = _app([[100, 102, 70, 46], [175, 105, 30, 45],
+                [300, 100, 28, 40], [330, 100, 28, 40], [361, 100, 28, 40]],
+               ["car", "motorcycle", "motorcycle", "motorcycle", "motorcycle"])
+    f = fuse(blobs, np.array([5000.0, 3000.0]), app)
+    assert len(f.boxes) == 5 and set(f.source.tolist()) == {BOTH}
+    np.testing.assert_allclose(f.boxes, app.boxes)
+    assert [VEHICLE_CLASSES[c] for c in f.cls] == ["car", "motorcycle", "motorcycle",
+                                                   "motorcycle", "motorcycle"]
+
+
+def test_blob_the_model_does_not_see_stays_and_standing_vehicles_are_added():
+    """A moving blob the model does not see stays a motion detection (score 1, no class);
+    an appearance box no blob holds (a standing car) is a detection of its own; a box that
+    sees only a small part of a large blob does not replace it."""
+    blobs = np.array([[0, 0, 40, 30], [200, 200, 100, 100]], float)
+    app = _app([[400, 50, 60, 30], [200, 200, 30, 30]], ["car", "car"], [0.9, 0.5])
+    f = fuse(blobs, np.array([900.0, 7000.0]), app)
+    assert f.source.tolist() == [MOTION, MOTION, APPEARANCE]
+    np.testing.assert_allclose(f.boxes, [[0, 0, 40, 30], [200, 200, 100, 100],
+                                         [400, 50, 60, 30]])
+    assert f.score.tolist() == [1.0, 1.0, 0.9] and f.cls.tolist()[:2] == [-1, -1]
+
+
+def test_pieces_of_one_vehicle_become_its_box():
+    """Two pieces of a truck inside its appearance box are replaced by the one box."""
+    blobs = np.array([[100, 100, 40, 40], [150, 100, 40, 40]], float)
+    app = _app([[95, 95, 100, 50]], ["truck"])
+    f = fuse(blobs, np.array([1500.0, 1500.0]), app)
+    assert f.source.tolist() == [BOTH]
+    np.testing.assert_allclose(f.boxes, app.boxes)
+
+
+# ------------------------------------------------------------------ through the run
+
+
+@pytest.mark.skipif(not HANOI.exists(), reason=f"real clip not available: {HANOI}")
+def test_hybrid_run_tracks_the_standing_queue_with_classes(tmp_path):
+    """`kind = "hybrid"` on the real crossroads' red light (frames 1-40, the queue stands):
+    the standing road users are confirmed tracks (the van among them), vehicles.csv names
+    their classes without a calibration, counts.csv has per-class rows beside `all` that
+    add up to it, and detections.csv carries the appearance scores."""
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text('[detector]\nkind = "hybrid"\n')
+    out = tmp_path / "run"
+    assert main(["track", str(HANOI), "--out", str(out), "--config", str(cfg), "--quiet",
+                 "--max-frames", "40", "--save-detections", "--count-line",
+                 "0%,55%,100%,55%"]) == 0
+    rows = list(csv.DictReader(open(out / "vehicles.csv")))
+    classes = [r["class"] for r in rows]
+    assert set(classes) <= {"", *VEHICLE_CLASSES}
+    assert classes.count("motorcycle") >= 5
+    tracks = np.loadtxt(out / "tracks.csv", delimiter=",", ndmin=2)
+    last = tracks[tracks[:, 0] == 40]
+    centres = last[:, 2:4] + last[:, 4:6] / 2
+    assert np.any((centres[:, 0] < 200) & (centres[:, 1] > 300) & (last[:, 4] > 100)), \
+        "the standing van is tracked at frame 40"
+    counts = list(csv.DictReader(open(out / "counts.csv")))
+    for d in ("forward", "backward"):
+        total = sum(int(r["count"]) for r in counts if r["direction"] == d
+                    and r["class"] == "all")
+        per_class = sum(int(r["count"]) for r in counts if r["direction"] == d
+                        and r["class"] != "all")
+        assert per_class <= total
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["config"]["detector"]["kind"] == "hybrid"
+    conf = np.loadtxt(out / "detections.csv", delimiter=",", ndmin=2)[:, 6]
+    assert np.any(conf < 1) and np.all((conf >= 0.3) & (conf <= 1))

@@ -1,0 +1,280 @@
+"""The appearance detector: a YOLOX-format ONNX model (COCO classes) that finds road users
+by how they look, standing or moving (Ge et al. 2021, "YOLOX: Exceeding YOLO Series in
+2021", arXiv 2107.08430).
+
+One pass (`AppearanceModel.detect`) on a region of the frame (the whole frame, or a tile of
+it at full resolution for far vehicles):
+1. letterbox: resize keeping the aspect ratio to the model's input side S (read from the
+   model), pad with grey 114 at the right and bottom (YOLOX's own preprocessing: BGR,
+   0-255, no mean or std);
+2. inference: onnxruntime when installed (twice as fast as OpenCV's DNN module on these
+   2 cores: docs/DETECTOR.md), else OpenCV DNN;
+3. decode (YOLOX's head, anchor-free): at grid cell (i, j) of stride s in {8, 16, 32}, the
+   box centre is ((dx + i) s, (dy + j) s) and its size (exp(lw) s, exp(lh) s); score =
+   objectness x class probability;
+4. per-class non-maximum suppression, then across classes (one box a road user);
+5. riders: a person box that overlaps a motorcycle's or bicycle's is that road user's rider
+   and widens its box; every other person box is dropped (a pedestrian is not a vehicle).
+
+Boxes come back in the frame's pixels with a score and a class index into VEHICLE_CLASSES.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from vtrack.boxes import intersection, iou
+from vtrack.errors import InputError
+
+# COCO class index -> vtrack class; the person (0) is read only as a rider
+COCO_VEHICLES = {1: "bicycle", 2: "car", 3: "motorcycle", 5: "bus", 7: "truck"}
+VEHICLE_CLASSES = ("motorcycle", "bicycle", "car", "bus", "truck")
+TWO_WHEELERS = (VEHICLE_CLASSES.index("bicycle"), VEHICLE_CLASSES.index("motorcycle"))
+COCO_CLASSES = 80
+PERSON = 0
+STRIDES = (8, 16, 32)
+PAD_GREY = 114
+
+SHIPPED = "yolox_nano.onnx"
+SHIPPED_SHA256 = "695e750a5d5754bb5a8d5325643b59282191a7e7a564e435a415fd3c578eab14"
+
+
+@dataclass
+class AppearanceBoxes:
+    """Road users found by appearance in one frame: boxes (K, 4) x, y, w, h in the frame's
+    pixels, scores (K,) in 0..1, classes (K,) indices into VEHICLE_CLASSES."""
+
+    boxes: np.ndarray
+    scores: np.ndarray
+    classes: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.scores)
+
+    @staticmethod
+    def empty() -> AppearanceBoxes:
+        return AppearanceBoxes(np.zeros((0, 4)), np.zeros(0), np.zeros(0, dtype=int))
+
+    @staticmethod
+    def concat(parts: list[AppearanceBoxes]) -> AppearanceBoxes:
+        if not parts:
+            return AppearanceBoxes.empty()
+        return AppearanceBoxes(np.concatenate([p.boxes for p in parts]),
+                               np.concatenate([p.scores for p in parts]),
+                               np.concatenate([p.classes for p in parts]))
+
+    def take(self, keep: np.ndarray) -> AppearanceBoxes:
+        return AppearanceBoxes(self.boxes[keep], self.scores[keep], self.classes[keep])
+
+
+def shipped_model() -> Path:
+    """The path of the YOLOX-Nano model inside the package (vtrack/models)."""
+    return Path(str(resources.files("vtrack.models").joinpath(SHIPPED)))
+
+
+def letterbox(image: np.ndarray, side: int) -> tuple[np.ndarray, float]:
+    """`image` resized into a side x side square keeping its aspect ratio, padded with grey
+    at the right and bottom, as a (1, 3, side, side) float32 blob; and the scale r (model
+    pixels per image pixel)."""
+    h, w = image.shape[:2]
+    r = min(side / h, side / w)
+    nw, nh = max(1, round(w * r)), max(1, round(h * r))
+    padded = np.full((side, side, 3), PAD_GREY, dtype=np.uint8)
+    padded[:nh, :nw] = cv2.resize(image, (nw, nh), interpolation=cv2.INTER_LINEAR)
+    return np.ascontiguousarray(padded.transpose(2, 0, 1)[None], dtype=np.float32), r
+
+
+def grid(side: int) -> tuple[np.ndarray, np.ndarray]:
+    """YOLOX's anchor points over a side x side input: the cell (i, j) (N, 2) and the stride
+    (N,) of each output row, strides 8, 16, 32 in order, row-major within each."""
+    cells, strides = [], []
+    for s in STRIDES:
+        n = side // s
+        j, i = np.mgrid[0:n, 0:n]
+        cells.append(np.stack([i.ravel(), j.ravel()], axis=1))
+        strides.append(np.full(n * n, s))
+    return np.concatenate(cells).astype(np.float32), np.concatenate(strides).astype(np.float32)
+
+
+def decode(raw: np.ndarray, cells: np.ndarray, strides: np.ndarray, min_score: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """YOLOX's raw output rows (N, 85) -> boxes (K, 4) x, y, w, h in model pixels, scores
+    and COCO classes of the rows whose best score (objectness x class) of a vehicle or a
+    person reaches `min_score`."""
+    wanted = np.array([PERSON, *COCO_VEHICLES])
+    scores = raw[:, 4:5] * raw[:, 5 + wanted]
+    best = scores.argmax(axis=1)
+    score = scores[np.arange(len(scores)), best]
+    keep = score >= min_score
+    r, st, c = raw[keep], strides[keep, None], cells[keep]
+    centre = (r[:, :2] + c) * st
+    size = np.exp(np.minimum(r[:, 2:4], 10.0)) * st
+    return (np.concatenate([centre - size / 2, size], axis=1).astype(float),
+            score[keep].astype(float), wanted[best[keep]])
+
+
+def suppress(boxes: np.ndarray, scores: np.ndarray, classes: np.ndarray, nms_iou: float,
+             cross_iou: float) -> np.ndarray:
+    """Indices kept by non-maximum suppression within each class at `nms_iou`, then across
+    classes at `cross_iou` (a car also scored as a truck is one road user), best first."""
+    keep = []
+    for c in np.unique(classes):
+        idx = np.flatnonzero(classes == c)
+        kept = cv2.dnn.NMSBoxes(boxes[idx].tolist(), scores[idx].tolist(), 0.0, nms_iou)
+        keep.extend(idx[np.asarray(kept, dtype=int).ravel()])
+    keep = np.array(sorted(keep, key=lambda i: -scores[i]), dtype=int)
+    out: list[int] = []
+    for i in keep:
+        if not out or iou(boxes[i][None], boxes[out])[0].max() < cross_iou:
+            out.append(int(i))
+    return np.array(out, dtype=int)
+
+
+def with_riders(boxes: np.ndarray, scores: np.ndarray, coco: np.ndarray
+                ) -> AppearanceBoxes:
+    """Vehicles only: each person box is given to the two-wheeler whose box covers the
+    largest share of it (at least a fifth; the rider sits on it) and widens that box to
+    their union; persons on no two-wheeler are dropped (pedestrians)."""
+    person = coco == PERSON
+    vehicle = np.flatnonzero(~person)
+    classes = np.array([VEHICLE_CLASSES.index(COCO_VEHICLES[int(c)]) for c in coco[vehicle]],
+                       dtype=int)
+    out = boxes[vehicle].copy()
+    two = np.flatnonzero(np.isin(classes, TWO_WHEELERS))
+    for p in np.flatnonzero(person):
+        if not len(two):
+            break
+        share = intersection(out[two], boxes[p]) / max(
+            boxes[p, 2] * boxes[p, 3], 1e-9)
+        k = int(share.argmax())
+        if share[k] >= 0.2:
+            v = two[k]
+            x0, y0 = np.minimum(out[v, :2], boxes[p, :2])
+            x1, y1 = np.maximum(out[v, :2] + out[v, 2:], boxes[p, :2] + boxes[p, 2:])
+            out[v] = [x0, y0, x1 - x0, y1 - y0]
+    return AppearanceBoxes(out, scores[vehicle], classes)
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+class _Runner:
+    """One inference engine over the model: onnxruntime when installed, else OpenCV DNN.
+    `input_side` is read from the model; calling it on a blob returns the raw rows (N, C)."""
+
+    def __init__(self, path: Path, threads: int, engine: str) -> None:
+        self.engine = engine
+        if engine == "onnxruntime":
+            import onnxruntime as ort
+
+            opts = ort.SessionOptions()
+            opts.intra_op_num_threads = max(1, threads)
+            opts.inter_op_num_threads = 1
+            opts.log_severity_level = 3
+            self.session = ort.InferenceSession(str(path), opts,
+                                                providers=["CPUExecutionProvider"])
+            inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
+            if len(inputs) != 1 or len(outputs) != 1:
+                raise ValueError("not one input and one output")
+            self.input_name = inputs[0].name
+            shape = inputs[0].shape
+            if len(shape) != 4 or shape[1] != 3 or not isinstance(shape[2], int) \
+                    or shape[2] != shape[3]:
+                raise ValueError(f"input shape {shape} is not 1x3xSxS")
+            self.input_side = int(shape[2])
+        else:
+            self.net = cv2.dnn.readNetFromONNX(str(path))
+            self.input_side = _probe_side(self.net)
+
+    def __call__(self, blob: np.ndarray) -> np.ndarray:
+        if self.engine == "onnxruntime":
+            out = self.session.run(None, {self.input_name: blob})[0]
+        else:
+            self.net.setInput(blob)
+            out = self.net.forward()
+        return np.asarray(out)[0]
+
+
+def _probe_side(net: Any) -> int:
+    """OpenCV DNN keeps no input shape: the side whose YOLOX grid the output matches."""
+    for side in (416, 640, 320, 512, 608, 224, 256, 288, 384, 448, 480, 544, 576, 672, 736,
+                 800, 960, 1024, 1280):
+        net.setInput(np.zeros((1, 3, side, side), np.float32))
+        try:
+            out = net.forward()
+        except cv2.error:
+            continue
+        if out.ndim == 3 and out.shape[1] == len(grid(side)[1]):
+            return side
+    raise ValueError("no input size whose YOLOX grid matches the output")
+
+
+def default_engine() -> str:
+    """"onnxruntime" when it is installed, else "opencv"."""
+    try:
+        import onnxruntime  # noqa: F401
+    except ImportError:
+        return "opencv"
+    return "onnxruntime"
+
+
+class AppearanceModel:
+    """A YOLOX-format ONNX model (COCO's 80 classes) read once; `detect` runs one pass.
+
+    `path` None: the shipped YOLOX-Nano, whose SHA-256 is checked at load. A missing,
+    corrupt or non-YOLOX file raises InputError naming it."""
+
+    def __init__(self, path: str | Path | None = None, min_score: float = 0.3,
+                 nms_iou: float = 0.45, cross_iou: float = 0.7, threads: int = 1,
+                 engine: str | None = None) -> None:
+        shipped = path is None or str(path) == ""
+        self.path = shipped_model() if shipped else Path(path)
+        if not self.path.is_file():
+            raise InputError(f"{self.path}: appearance model not found")
+        if shipped and _sha256(self.path) != SHIPPED_SHA256:
+            raise InputError(f"{self.path}: the shipped model's checksum does not match "
+                             f"(reinstall vtrack)")
+        self.engine = engine or default_engine()
+        try:
+            self.run = _Runner(self.path, threads, self.engine)
+            side = self.run.input_side
+            self.cells, self.strides = grid(side)
+            probe = self.run(np.full((1, 3, side, side), PAD_GREY, np.float32))
+        except InputError:
+            raise
+        except Exception as exc:   # onnxruntime's and OpenCV's own errors, any text
+            first = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ""
+            raise InputError(f"{self.path}: not a readable YOLOX ONNX model ({first})"
+                             ) from None
+        if probe.ndim != 2 or probe.shape[0] != len(self.strides):
+            raise InputError(f"{self.path}: output {probe.shape} is not YOLOX's rows over "
+                             f"strides 8, 16, 32 of a {side} input")
+        if probe.shape[1] != 5 + COCO_CLASSES:
+            raise InputError(f"{self.path}: {probe.shape[1] - 5} classes, not COCO's 80: no "
+                             f"vehicle classes vtrack can read")
+        self.side = side
+        self.min_score, self.nms_iou, self.cross_iou = min_score, nms_iou, cross_iou
+
+    def detect(self, image: np.ndarray, offset: tuple[float, float] = (0.0, 0.0)
+               ) -> AppearanceBoxes:
+        """The road users in `image` (BGR uint8; a crop of the frame whose top-left corner
+        is `offset` in the frame's pixels), in the frame's pixels."""
+        blob, r = letterbox(image, self.side)
+        boxes, scores, coco = decode(self.run(blob), self.cells, self.strides,
+                                     self.min_score)
+        boxes /= r
+        boxes[:, :2] += offset
+        keep = suppress(boxes, scores, coco, self.nms_iou, self.cross_iou)
+        return with_riders(boxes[keep], scores[keep], coco[keep])

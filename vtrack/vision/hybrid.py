@@ -1,0 +1,114 @@
+"""The fused detector (`[detector] kind = "hybrid"` or `"appearance"`): the MOG2 detector
+(detect.py) and the appearance detector (appearance.py) side by side, their boxes fused
+(fusion.py).
+
+The appearance model runs in a worker thread of its own, beside the image stages and the
+tracking, on the frames the schedule picks: the whole frame every `appearance_seconds` of
+video (every frame for `appearance`, and for a video slower than 1 / appearance_seconds). It is asked for frame n when the frame is read
+(`request`), before the tracker reaches it, and its boxes are taken when the frame's blobs
+are located (`locate`): reading never waits for it, and the results do not depend on the
+threads' timing (the schedule depends on the frame's number alone).
+
+Between two passes the newest pass's boxes that no blob of the current frame links to are
+held (a standing, queued or parked vehicle: nothing moves there, so its box still holds
+it) and keep measuring their vehicles however long they stand; a box whose vehicle moves
+links to that vehicle's blob and gives way to it until the next pass.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from vtrack.boxes import centre
+from vtrack.vision.appearance import AppearanceBoxes, AppearanceModel
+from vtrack.vision.detect import Detections, DetectorConfig, Foreground, MotionDetector
+from vtrack.vision.fusion import fuse, links
+
+KINDS = ("hybrid", "mog2", "appearance")
+
+
+class FusedDetector:
+    """MOG2 blobs and appearance boxes fused, behind the interface of MotionDetector (the
+    image stages are its own; `request` must be called with each frame's full image, in
+    order, before that frame is located)."""
+
+    def __init__(self, motion: MotionDetector, model: AppearanceModel, every: int,
+                 motion_blobs: bool = True, threaded: bool = True) -> None:
+        """`motion_blobs` False: appearance alone (kind "appearance"); `threaded` False:
+        each pass runs when its frame is located, in the caller's thread (--profile)."""
+        self.motion = motion
+        self.model = model
+        self.every = max(1, every)
+        self.motion_blobs = motion_blobs
+        self._pool = (ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtrack-appearance")
+                      if threaded else None)
+        self._pending: deque[Future | np.ndarray | None] = deque()
+        self._requested = 0
+        self._last = AppearanceBoxes.empty()
+        self.passes = 0
+
+    def __getattr__(self, name: str) -> Any:
+        """The image stages and their state (prepare, align, subtract, segment, initialise,
+        frames, scale, foreground, ...) are the motion detector's."""
+        return getattr(self.motion, name)
+
+    def scheduled(self, number: int) -> bool:
+        """Whether frame `number` (1-based, in reading order) gets an appearance pass."""
+        return (number - 1) % self.every == 0
+
+    def request(self, image: np.ndarray) -> None:
+        """The next frame's full-resolution image, as it is read: its pass starts now if the
+        schedule picks it."""
+        self._requested += 1
+        job: Future | np.ndarray | None = None
+        if self.scheduled(self._requested):
+            job = image if self._pool is None else self._pool.submit(self.model.detect, image)
+        self._pending.append(job)
+
+    def detect(self, image: np.ndarray, predicted: np.ndarray | None = None) -> Detections:
+        """One frame: request, segment and locate."""
+        self.request(image)
+        return self.locate(self.motion.segment(image), predicted)
+
+    def locate(self, fg: Foreground, predicted: np.ndarray | None = None) -> Detections:
+        """The frame's fused detections (fusion.py), in its pixels."""
+        dets = self.motion.locate(fg, predicted)
+        if not self.motion_blobs:
+            dets = Detections.empty(dets.motion)
+        job = self._pending.popleft() if self._pending else None
+        if job is not None:
+            app = self._last = (job.result() if isinstance(job, Future)
+                                else self.model.detect(job))
+            self.passes += 1
+        else:   # between passes: the boxes of standing vehicles (nothing moves there)
+            app = self._last.take(~links(dets.boxes, self._last.boxes).any(axis=0))
+        f = fuse(dets.boxes, dets.areas, app)
+        return Detections(centre(f.boxes), f.boxes, f.areas, dets.motion, dets.changed,
+                          source=f.source, score=f.score, cls=f.cls)
+
+    def close(self) -> None:
+        """Stop the worker (a pass under way finishes first)."""
+        for job in self._pending:
+            if isinstance(job, Future):
+                job.cancel()
+        self._pending.clear()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+
+
+def make_detector(cfg: DetectorConfig, width: int, height: int, fps: float = 25.0,
+                  roi: np.ndarray | None = None, threaded: bool = True
+                  ) -> MotionDetector | FusedDetector:
+    """The detector `cfg.kind` names: MOG2 alone, appearance alone or both fused
+    (`threaded`: FusedDetector's)."""
+    motion = MotionDetector(cfg, width, height, fps, roi)
+    if cfg.kind == "mog2":
+        return motion
+    model = AppearanceModel(cfg.appearance_model or None, min_score=cfg.appearance_score)
+    every = 1 if cfg.kind == "appearance" else max(1, round(cfg.appearance_seconds * fps))
+    return FusedDetector(motion, model, every, motion_blobs=cfg.kind == "hybrid",
+                         threaded=threaded)
