@@ -4,8 +4,10 @@
 Runs, with the DEFAULT configuration (or --config), every synthetic scene preset of
 `vtrack synth` with several seeds plus every real clip of ../shared/videos/handcounts.json
 with its counting line, through `vtrack track`; then runs two peers, SORT and ByteTrack from
-the `trackers` package (Roboflow), on exactly the MOG2 detections vtrack's detector produced
-for that clip (`vtrack track --save-detections`), counted with the same line rule. Prints one
+the `trackers` package (Roboflow), on exactly the detections vtrack's detector produced
+for that clip (`vtrack track --save-detections`), and the peer a user would pick instead of
+vtrack, the appearance model's boxes on every frame tracked by ByteTrack
+("yolox+bytetrack"), all counted with the same line rule. Prints one
 table: per synthetic clip MOTA, IDF1, HOTA, ID switches, FP, FN per tracker and the recall of
 the raw detections (the detector's ceiling: a loss above it is the tracker's, below it the
 detector's); per synthetic clip the counts on two lines (y = 0.6 H and x = 0.5 W) beside the
@@ -53,6 +55,11 @@ ROOT = Path(__file__).resolve().parents[1]
 VIDEOS = ROOT.parent / "shared" / "videos"
 SCENES = ("overhead", "mast", "side", "junction")
 PEERS = ("sort", "bytetrack")
+# the peer a user would pick instead of vtrack: the appearance model's boxes on every frame
+# (`vtrack track` with kind = "appearance", boxes down to a score of 0.1 for ByteTrack's
+# second stage) tracked by ByteTrack at the `trackers` package's defaults
+APPEARANCE_PEER = "yolox+bytetrack"
+APPEARANCE_CONFIG = '[detector]\nkind = "appearance"\nappearance_score = 0.1\n'
 METRICS = ("mota", "idf1", "hota", "id_switches", "false_positives", "misses")
 MOVED_METRICS = ("mota", "idf1", "hota")
 HIGHER_IS_BETTER = {"mota", "idf1", "hota"}
@@ -176,8 +183,8 @@ def read_detections(path: Path) -> np.ndarray:
 
 
 def peer_rows(name: str, dets: np.ndarray, frames: int, fps: float) -> np.ndarray:
-    """Track detections (rows of MOT columns: frame, -, x, y, w, h) with a peer of the
-    `trackers` package; its rows (frame, id, x, y, w, h), sorted by frame then id."""
+    """Track detections (rows of MOT columns: frame, -, x, y, w, h, conf) with a peer of
+    the `trackers` package; its rows (frame, id, x, y, w, h), sorted by frame then id."""
     import supervision as sv
     from trackers import ByteTrackTracker, SORTTracker
 
@@ -188,7 +195,7 @@ def peer_rows(name: str, dets: np.ndarray, frames: int, fps: float) -> np.ndarra
         d = by_frame.get(n, np.zeros((0, 6)))
         xyxy = np.column_stack([d[:, 2], d[:, 3], d[:, 2] + d[:, 4], d[:, 3] + d[:, 5]])
         result = tracker.update(sv.Detections(xyxy=xyxy.reshape(-1, 4).astype(float),
-                                              confidence=np.ones(len(d))))
+                                              confidence=d[:, 6].astype(float)))
         for (x0, y0, x1, y1), tid in zip(result.xyxy, result.tracker_id, strict=True):
             if tid is not None and tid >= 0 and x1 > x0 and y1 > y0:
                 rows.append((n, int(tid) + 1, x0, y0, x1 - x0, y1 - y0))
@@ -203,6 +210,18 @@ def run_peer(name: str, detections: Path, fps: float, frames: int, out: Path) ->
         for n, tid, x, y, w, h in peer_rows(name, read_detections(detections), frames, fps):
             f.write(f"{int(n)},{int(tid)},{x:.2f},{y:.2f},{w:.2f},{h:.2f},1,-1,-1,-1\n")
     return path
+
+
+def appearance_peer(video: Path, out: Path, lines: list[list[float]], summary: dict) -> Path:
+    """APPEARANCE_PEER's tracks of `video`: the appearance model's boxes of every frame
+    (`vtrack track` with APPEARANCE_CONFIG) tracked by ByteTrack; writes MOT rows."""
+    out.mkdir(parents=True, exist_ok=True)
+    config = out / "appearance.toml"
+    config.write_text(APPEARANCE_CONFIG)
+    track(video, out, lines, str(config))
+    path = run_peer("bytetrack", out / "detections.csv", summary["fps_video"],
+                    summary["frames"], out)
+    return path.rename(out.parent / f"tracks_{APPEARANCE_PEER}.csv")
 
 
 def count(tracks: Path, lines: list[list[float]]) -> list[list[int]]:
@@ -250,6 +269,8 @@ def run_clip(clip: SynthClip | RealClip, work: Path, cache: Path, config: str | 
             for name in PEERS:
                 outputs[name] = run_peer(name, out / "detections.csv", summary["fps_video"],
                                          summary["frames"], out)
+            outputs[APPEARANCE_PEER] = appearance_peer(video, out / "appearance", lines,
+                                                       summary)
         if synthetic:
             gt, dets = read_mot(src / "gt.csv"), read_detections(out / "detections.csv")
             res.detector = detection_scores(gt, dets) | {"misses": miss_table(gt, dets)}
@@ -594,7 +615,7 @@ def main(argv: list[str] | None = None) -> int:
         clips += [] if args.no_real else real_clips()
     keys = [k for k in args.only.split(",") if k]
     clips = [c for c in clips if not keys or any(k in c.name for k in keys)]
-    trackers = ["vtrack"] + ([] if args.no_peers else list(PEERS))
+    trackers = ["vtrack"] + ([] if args.no_peers else [*PEERS, APPEARANCE_PEER])
     work, cache = Path(args.work), Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

@@ -21,7 +21,7 @@ from vtrack.errors import InputError
 from vtrack.vision.appearance import (SHIPPED_SHA256, VEHICLE_CLASSES, AppearanceBoxes,
                                       AppearanceModel, decode, grid, shipped_model,
                                       with_riders)
-from vtrack.vision.fusion import APPEARANCE, BOTH, MOTION, fuse
+from vtrack.vision.fusion import APPEARANCE, BOTH, MOTION, follow, fuse
 
 ROOT = Path(__file__).resolve().parents[2]
 HANOI = ROOT.parent / "shared" / "videos" / "hanoi_crossroads_queue.mp4"
@@ -222,6 +222,36 @@ def test_pieces_of_one_vehicle_become_its_box():
     f = fuse(blobs, np.array([1500.0, 1500.0]), app)
     assert f.source.tolist() == [BOTH]
     np.testing.assert_allclose(f.boxes, app.boxes)
+
+
+def test_boxes_ride_on_their_blobs_between_passes():
+    """Between passes a box that explained a blob (a car without its shadow) moves and
+    grows with that blob, so the tracker sees the same whole box every frame; a merged blob
+    keeps its split; a standing car's box is held; a blob no box rode on stays motion."""
+    blobs = np.array([[100, 100, 80, 50], [300, 100, 90, 40]], float)   # car+shadow, 2 cars
+    app = _app([[100, 100, 60, 40], [300, 100, 44, 40], [346, 100, 44, 40],
+                [500, 300, 50, 30]], ["car", "car", "car", "car"])
+    f = fuse(blobs, np.array([3000.0, 3000.0]), app)
+    assert f.source.tolist() == [BOTH, BOTH, BOTH, APPEARANCE]
+    moved = np.array([[110, 104, 88, 55], [305, 100, 90, 40], [20, 20, 30, 30]], float)
+    g = follow(f.riders(), moved, np.array([3500.0, 3000.0, 600.0]))
+    assert g.source.tolist() == [MOTION, BOTH, BOTH, BOTH, APPEARANCE]
+    np.testing.assert_allclose(g.boxes[0], [20, 20, 30, 30])          # the new blob
+    np.testing.assert_allclose(g.boxes[1], [110, 104, 66, 44])        # 1.1 x, shifted
+    np.testing.assert_allclose(g.boxes[2:4], [[305, 100, 44, 40], [351, 100, 44, 40]])
+    np.testing.assert_allclose(g.boxes[4], [500, 300, 50, 30])        # standing: held
+    assert g.cls.tolist() == [-1] + [VEHICLE_CLASSES.index("car")] * 4
+
+
+def test_a_rider_leaves_a_blob_that_changes_too_much():
+    """A carrier that doubles in width in one frame (another vehicle merged into the blob)
+    drops its rider: the blob is a motion detection again; a standing box that a blob now
+    covers (its vehicle drives off) gives way to the blob."""
+    f = fuse(np.array([[100, 100, 60, 40]], float), np.array([2000.0]),
+             _app([[100, 100, 60, 40], [400, 100, 60, 40]], ["car", "car"]))
+    g = follow(f.riders(), np.array([[100, 100, 130, 40], [405, 100, 60, 40]], float),
+               np.array([4000.0, 2000.0]))
+    assert g.source.tolist() == [MOTION, MOTION]
 
 
 # ------------------------------------------------------------------ through the run

@@ -15,6 +15,16 @@ piece of a vehicle inside its box). Then, per blob:
 Appearance boxes linked to no blob (standing, queued, far vehicles) are detections of
 their own (APPEARANCE); those linked only to blobs they do not explain are dropped (the
 blob measures that vehicle).
+
+Between two appearance passes (`follow`) each appearance box rides on the blobs it
+explained (its carrier: their union): on the next frame the blobs linked to the carrier are
+its new carrier, and the box keeps its place and size relative to it (the box in the
+carrier's own coordinates, `relative` / `placed`). So the tracker is measured with the same
+whole boxes on every frame, not whole boxes on pass frames and blobs with their shadows,
+merges and pieces on the frames between. A carrier that changes size by more than
+`CARRIER_CHANGE` in a frame (another vehicle merged into the blob, the vehicle left it)
+drops its riders and the blobs are motion detections again until the next pass. A box with
+no carrier (a standing vehicle) is held while no blob links to it.
 """
 
 from __future__ import annotations
@@ -30,19 +40,53 @@ MOTION, APPEARANCE, BOTH = 0, 1, 2
 PROVENANCE = ("motion", "appearance", "both")
 LINK_SHARE = 0.5
 COVER_SHARE = 0.5
+CARRIER_CHANGE = 1.4   # largest ratio of a carrier's width or height from frame to frame
 
 
 @dataclass
 class Fused:
     """One frame's fused detections: boxes (K, 4), foreground areas (K,) (a box's area
     where no blob measured it), provenance (K,), scores (K,) (1 for motion-only blobs) and
-    classes (K,) (index into appearance.VEHICLE_CLASSES, -1 unknown)."""
+    classes (K,) (index into appearance.VEHICLE_CLASSES, -1 unknown); for each row of an
+    appearance box, the union of the blobs it explained (its carrier; NaN: none) (K, 4)."""
 
     boxes: np.ndarray
     areas: np.ndarray
     source: np.ndarray
     score: np.ndarray
     cls: np.ndarray
+    carrier: np.ndarray
+
+    def riders(self) -> Fused:
+        """The appearance rows (those that ride on to the next frame, `follow`)."""
+        keep = self.source != MOTION
+        return Fused(self.boxes[keep], self.areas[keep], self.source[keep], self.score[keep],
+                     self.cls[keep], self.carrier[keep])
+
+    @staticmethod
+    def empty() -> Fused:
+        return Fused(np.zeros((0, 4)), np.zeros(0), np.zeros(0, int), np.zeros(0),
+                     np.zeros(0, int), np.zeros((0, 4)))
+
+
+def union(boxes: np.ndarray) -> np.ndarray:
+    """The box (4,) around boxes (n >= 1, 4)."""
+    x0, y0 = boxes[:, :2].min(axis=0)
+    x1, y1 = (boxes[:, :2] + boxes[:, 2:]).max(axis=0)
+    return np.array([x0, y0, x1 - x0, y1 - y0])
+
+
+def relative(boxes: np.ndarray, carriers: np.ndarray) -> np.ndarray:
+    """Boxes (n, 4) in their carriers' (n, 4) coordinates: the carrier is (0, 0, 1, 1)."""
+    size = np.maximum(carriers[:, 2:], 1e-9)
+    return np.concatenate([(boxes[:, :2] - carriers[:, :2]) / size, boxes[:, 2:] / size],
+                          axis=1)
+
+
+def placed(rel: np.ndarray, carriers: np.ndarray) -> np.ndarray:
+    """Boxes (n, 4) given in carrier coordinates `rel` placed on `carriers` (n, 4)."""
+    return np.concatenate([carriers[:, :2] + rel[:, :2] * carriers[:, 2:],
+                           rel[:, 2:] * carriers[:, 2:]], axis=1)
 
 
 def links(blobs: np.ndarray, app: np.ndarray) -> np.ndarray:
@@ -81,11 +125,54 @@ def fuse(blobs: np.ndarray, areas: np.ndarray, app: AppearanceBoxes) -> Fused:
     keep_app = link[explained].any(axis=0) | ~link.any(axis=0)
     both = link[explained].any(axis=0)
     a = np.flatnonzero(keep_app)
-    app_boxes = app.boxes[a]
-    return Fused(
-        boxes=np.concatenate([blobs[motion], app_boxes]).reshape(-1, 4),
-        areas=np.concatenate([areas[motion], np.prod(app_boxes[:, 2:], axis=1)]),
-        source=np.concatenate([np.full(int(motion.sum()), MOTION),
-                               np.where(both[a], BOTH, APPEARANCE)]).astype(int),
-        score=np.concatenate([np.ones(int(motion.sum())), app.scores[a]]),
-        cls=np.concatenate([np.full(int(motion.sum()), -1), app.classes[a]]).astype(int))
+    carriers = np.full((len(a), 4), np.nan)
+    for row, k in enumerate(a):
+        held = link[:, k] & explained
+        if held.any():
+            carriers[row] = union(blobs[held])
+    return _joined(blobs[motion], areas[motion], Fused(
+        app.boxes[a], np.prod(app.boxes[a, 2:], axis=1),
+        np.where(both[a], BOTH, APPEARANCE).astype(int), app.scores[a],
+        app.classes[a].astype(int), carriers))
+
+
+def _joined(blobs: np.ndarray, areas: np.ndarray, app: Fused) -> Fused:
+    """Motion rows (the blobs) followed by the appearance rows `app`."""
+    n = len(blobs)
+    return Fused(np.concatenate([blobs.reshape(-1, 4), app.boxes]).reshape(-1, 4),
+                 np.concatenate([areas, app.areas]),
+                 np.concatenate([np.full(n, MOTION), app.source]).astype(int),
+                 np.concatenate([np.ones(n), app.score]),
+                 np.concatenate([np.full(n, -1), app.cls]).astype(int),
+                 np.concatenate([np.full((n, 4), np.nan), app.carrier]))
+
+
+def follow(riders: Fused, blobs: np.ndarray, areas: np.ndarray) -> Fused:
+    """This frame's detections between two appearance passes: the appearance boxes of the
+    last frame (`riders`, Fused.riders) carried on by this frame's blobs (B, 4) or held
+    where they stand, and the blobs no rider takes as motion detections (the module's
+    rules)."""
+    carried = ~np.isnan(riders.carrier[:, 0])
+    taken = np.zeros(len(blobs), dtype=bool)
+    keep = np.zeros(len(riders.boxes), dtype=bool)
+    boxes, carriers = riders.boxes.copy(), riders.carrier.copy()
+    link = links(riders.carrier[carried], blobs) if carried.any() else None
+    for i, r in enumerate(np.flatnonzero(carried)):
+        held = link[i]
+        if not held.any():
+            continue
+        new = union(blobs[held])
+        change = new[2:] / np.maximum(riders.carrier[r, 2:], 1e-9)
+        if np.any((change > CARRIER_CHANGE) | (change < 1 / CARRIER_CHANGE)):
+            continue
+        rel = relative(riders.boxes[r][None], riders.carrier[r][None])
+        boxes[r], carriers[r] = placed(rel, new[None])[0], new
+        taken |= held
+        keep[r] = True
+    standing = np.flatnonzero(~carried)
+    if len(standing):
+        keep[standing] = ~links(blobs, riders.boxes[standing]).any(axis=0)
+    k = np.flatnonzero(keep)
+    return _joined(blobs[~taken], areas[~taken], Fused(
+        boxes[k], np.prod(boxes[k, 2:], axis=1), riders.source[k], riders.score[k],
+        riders.cls[k], carriers[k]))

@@ -4,15 +4,16 @@
 
 The appearance model runs in a worker thread of its own, beside the image stages and the
 tracking, on the frames the schedule picks: the whole frame every `appearance_seconds` of
-video (every frame for `appearance`, and for a video slower than 1 / appearance_seconds). It is asked for frame n when the frame is read
-(`request`), before the tracker reaches it, and its boxes are taken when the frame's blobs
-are located (`locate`): reading never waits for it, and the results do not depend on the
-threads' timing (the schedule depends on the frame's number alone).
+video (every frame for `appearance`, and for a video slower than 1 / appearance_seconds).
+It is asked for frame n when the frame is read (`request`), before the tracker reaches it,
+and its boxes are taken when the frame's blobs are located (`locate`): reading never waits
+for it, and the results do not depend on the threads' timing (the schedule depends on the
+frame's number alone).
 
-Between two passes the newest pass's boxes that no blob of the current frame links to are
-held (a standing, queued or parked vehicle: nothing moves there, so its box still holds
-it) and keep measuring their vehicles however long they stand; a box whose vehicle moves
-links to that vehicle's blob and gives way to it until the next pass.
+Between two passes the appearance boxes ride on the blobs they explained, and those of
+standing vehicles (no blob) are held where nothing moves (fusion.follow): every frame is
+measured with the same whole boxes, and a queued vehicle keeps its measurement however
+long it stands.
 """
 
 from __future__ import annotations
@@ -24,9 +25,9 @@ from typing import Any
 import numpy as np
 
 from vtrack.boxes import centre
-from vtrack.vision.appearance import AppearanceBoxes, AppearanceModel
+from vtrack.vision.appearance import AppearanceModel
 from vtrack.vision.detect import Detections, DetectorConfig, Foreground, MotionDetector
-from vtrack.vision.fusion import fuse, links
+from vtrack.vision.fusion import Fused, follow, fuse
 
 KINDS = ("hybrid", "mog2", "appearance")
 
@@ -48,7 +49,7 @@ class FusedDetector:
                       if threaded else None)
         self._pending: deque[Future | np.ndarray | None] = deque()
         self._requested = 0
-        self._last = AppearanceBoxes.empty()
+        self._riders = Fused.empty()
         self.passes = 0
 
     def __getattr__(self, name: str) -> Any:
@@ -81,12 +82,12 @@ class FusedDetector:
             dets = Detections.empty(dets.motion)
         job = self._pending.popleft() if self._pending else None
         if job is not None:
-            app = self._last = (job.result() if isinstance(job, Future)
-                                else self.model.detect(job))
+            app = job.result() if isinstance(job, Future) else self.model.detect(job)
+            f = fuse(dets.boxes, dets.areas, app)
             self.passes += 1
-        else:   # between passes: the boxes of standing vehicles (nothing moves there)
-            app = self._last.take(~links(dets.boxes, self._last.boxes).any(axis=0))
-        f = fuse(dets.boxes, dets.areas, app)
+        else:   # between passes: the boxes ride on their blobs or stand
+            f = follow(self._riders, dets.boxes, dets.areas)
+        self._riders = f.riders()
         return Detections(centre(f.boxes), f.boxes, f.areas, dets.motion, dets.changed,
                           source=f.source, score=f.score, cls=f.cls)
 
