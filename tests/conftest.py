@@ -5,26 +5,22 @@ from __future__ import annotations
 
 import contextlib
 import io
-import os
-import platform
 import signal
 import struct
 from pathlib import Path
 
 import pytest
 
-# The golden outputs (tests/golden) are compared bit for bit, and OpenBLAS picks its kernels
-# by CPU, with other last bits on each: they are recorded with its Haswell kernels (AVX2,
-# every x86-64 CPU of the last decade), which the tests therefore use on any x86-64 machine
-# (an AVX-512 CPU would take SkylakeX or Zen kernels). Set before NumPy loads OpenBLAS;
-# test workers and the processes the tests start inherit it.
-if platform.machine() in ("x86_64", "AMD64"):
-    os.environ["OPENBLAS_CORETYPE"] = "Haswell"
-
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_VIDEOS = ROOT.parent / "shared" / "videos"
 HIGHWAY = SHARED_VIDEOS / "bgslibrary_video03_highway.avi"
 RESIDENTIAL = SHARED_VIDEOS / "vehicle_counting_tf_sub-1504614469486_residential.mp4"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers", "golden: compares with the recorded outputs of tests/golden (.ci/run runs "
+        "these once more under another OpenBLAS kernel)")
 
 
 @pytest.fixture(scope="session")

@@ -109,6 +109,7 @@ def test_adaptive_filters_stay_above_the_reference_floor(case_3a, case_3b):
             assert mse_runs.mean() + 3 * se >= np.mean(case.bound_var), kind
 
 
+@pytest.mark.golden
 def test_ankf_json(capsys):
     assert main(["experiment", "ankf", "--runs", "2", "--seed", "3", "--json"]) == 0
     out = capsys.readouterr().out

@@ -170,6 +170,7 @@ def _check_results(results, kinds):
         assert isinstance(entry["diverged"], int)
 
 
+@pytest.mark.golden
 @pytest.mark.parametrize("name,cases", [
     ("bearings-2", {"toolbox-sensors", "model-matched", "precise-sensors"}),
     ("bearings-3", {"model-matched"}),

@@ -27,6 +27,7 @@ def small_fuzzy(monkeypatch):
     monkeypatch.setattr(fz, "CASES", {"E3": fz.CASES["E3"]})
 
 
+@pytest.mark.golden
 def test_json_schema_and_determinism(small_fuzzy, cli_stdout):
     out1 = cli_stdout(["experiment", "fuzzy", "--runs", "3", "--seed", "4", "--json"])
     out2 = cli_stdout(["experiment", "fuzzy", "--runs", "3", "--seed", "4", "--json"])

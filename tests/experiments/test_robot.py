@@ -86,6 +86,7 @@ def small_robot(monkeypatch):
                             "small", True)})
 
 
+@pytest.mark.golden
 def test_json_schema_and_determinism(small_robot, cli_stdout):
     out1 = cli_stdout(["experiment", "robot", "--runs", "2", "--seed", "3", "--json"])
     out2 = cli_stdout(["experiment", "robot", "--runs", "2", "--seed", "3", "--json"])

@@ -62,6 +62,7 @@ def test_scenario2_growing_r_helps_a_little_and_never_hurts_beyond_noise():
     assert ekf["anees"] > 10  # the EKF is badly overconfident here (R too small)
 
 
+@pytest.mark.golden
 def test_json_schema_and_determinism(monkeypatch, cli_stdout):
     monkeypatch.setattr(si, "GAMMA_SWEEP", (1e-2,))
     original = si.Scenario2

@@ -8,16 +8,21 @@ commit a7d84d5, before the filter registry, the hooks and the Monte Carlo harnes
     cd /tmp/base && OPENBLAS_CORETYPE=Haswell PYTHONPATH=/tmp/base \
         /path/to/vtrack/.venv/bin/python /path/to/vtrack/tests/golden/record_golden.py
 
-OpenBLAS's kernels differ in the last bits from CPU to CPU, so the recording names its
-kernels: Haswell (AVX2), which tests/conftest.py selects for the tests on every x86-64
-machine. (Recorded first with its SkylakeX kernels; re-recorded from a7d84d5 with Haswell's
-once the machines changed, after checking that a7d84d5 with SkylakeX's reproduces the first
-recording byte for byte.)
+The tests compare with these files within a tolerance (tests/golden/tolerance.py: 1e-9
+relative to the quantity's magnitude), not bit for bit: OpenBLAS's and NumPy's kernels
+differ from CPU to CPU and round the last bits differently, so no recording is bit-exact on
+every machine, and the tests run on whatever kernels the machine picks. The recording still
+names its OpenBLAS kernels, Haswell (AVX2), so that a re-recording can be checked byte for
+byte against the SHA-256s below. (Recorded first with SkylakeX kernels; re-recorded from
+a7d84d5 with Haswell's once the machines changed, after checking that a7d84d5 with
+SkylakeX's reproduces the first recording byte for byte.)
 
 It writes, next to this file:
 * filter/<input>.csv: measurement logs (made here once, deterministic) and filter/expected.json:
   for each (config, kind, options, log) the exit code of `vtrack filter`, the SHA-256 of its
-  ESTIMATES.csv and every 25th row at full precision (or the one-line error);
+  ESTIMATES.csv, its row count and every 25th row at full precision (or the one-line error);
+  filter/estimates.json.gz: each case's whole ESTIMATES.csv (the bytes the SHA-256 names;
+  added later, after checking that the code on Haswell's kernels still gives those bytes);
 * experiments/<name>.json: `vtrack experiment NAME --json` on the shrunk settings the
   experiment JSON tests use (SHRINK below); those tests call assert_unchanged;
 * experiments_full/<name>.json: `vtrack experiment NAME --json --runs 4 --seed 1` (full
@@ -31,6 +36,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import gzip
 import hashlib
 import io
 import json
@@ -39,6 +45,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from tolerance import json_differences
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -196,8 +203,9 @@ def make_logs(folder: Path) -> None:
 
 
 def run_filter_case(folder: Path, tmp: Path, config: str, kind: str, options: str, log: str
-                    ) -> dict[str, object]:
-    """`vtrack filter` in-process on one case: exit code, hash, sampled rows or the error."""
+                    ) -> tuple[dict[str, object], str | None]:
+    """`vtrack filter` in-process on one case: its record (exit code, hash, row count,
+    sampled rows, or the error) and its whole ESTIMATES.csv (None after an error)."""
     from vtrack.cli import main
 
     cfg = tmp / "config.toml"
@@ -209,15 +217,29 @@ def run_filter_case(folder: Path, tmp: Path, config: str, kind: str, options: st
         code = main(["filter", str(cfg), str(folder / f"{log}.csv"), "--out", str(out)])
     if code != 0:
         return {"code": code, "error": err.getvalue().replace(str(folder), "<golden>")
-                .replace(str(tmp), "<tmp>")}
+                .replace(str(tmp), "<tmp>")}, None
     data = out.read_bytes()
     rows = data.decode().splitlines()
     return {"code": 0, "sha256": hashlib.sha256(data).hexdigest(), "rows": len(rows),
-            "sampled": {str(i): rows[i] for i in range(0, len(rows), 25)}}
+            "sampled": {str(i): rows[i] for i in range(0, len(rows), 25)}}, data.decode()
 
 
 def case_key(config: str, kind: str, options: str, log: str) -> str:
     return f"{config}|{kind}|{options.strip().replace(chr(10), ';')}|{log}"
+
+
+ESTIMATES = "estimates.json.gz"   # in filter/: case key -> its whole ESTIMATES.csv
+
+
+def write_estimates(path: Path, estimates: dict[str, str]) -> None:
+    """Write case key -> ESTIMATES.csv text, gzip-compressed with no time stamp (the same
+    estimates give the same bytes)."""
+    data = json.dumps(estimates, indent=0, sort_keys=True).encode()
+    path.write_bytes(gzip.compress(data, compresslevel=9, mtime=0))
+
+
+def read_estimates(path: Path) -> dict[str, str]:
+    return json.loads(gzip.decompress(path.read_bytes()))
 
 
 # ------------------------------------------------------------------ experiment shrinks
@@ -285,34 +307,12 @@ def experiment_json(name: str, runs: int, seed: int) -> dict:
     return json.loads(buf.getvalue())
 
 
-def missing_or_changed(expected: object, got: object, path: str = "") -> list[str]:
-    """Paths where `got` lacks or differs from a value of `expected` (exact comparison;
-    dictionaries in `got` may hold more keys)."""
-    if isinstance(expected, dict):
-        if not isinstance(got, dict):
-            return [f"{path}: expected a mapping, got {got!r:.80}"]
-        out = []
-        for key, value in expected.items():
-            if key not in got:
-                out.append(f"{path}/{key}: missing")
-            else:
-                out.extend(missing_or_changed(value, got[key], f"{path}/{key}"))
-        return out
-    if isinstance(expected, list):
-        if not isinstance(got, list) or len(got) != len(expected):
-            return [f"{path}: expected a list of {len(expected)}, got {got!r:.80}"]
-        return [d for i, (a, b) in enumerate(zip(expected, got))
-                for d in missing_or_changed(a, b, f"{path}[{i}]")]
-    if expected != got or type(expected) is not type(got):
-        return [f"{path}: {expected!r} -> {got!r}"]
-    return []
-
-
 def assert_unchanged(name: str, summary: dict) -> None:
     """`summary`, the JSON of experiment `name` on its SHRINK settings, holds every value
-    recorded in experiments/<name>.json, bit for bit (new keys may be added)."""
+    recorded in experiments/<name>.json (floats within tolerance.py's, the rest exactly;
+    new keys may be added)."""
     want = json.loads((HERE / "experiments" / f"{name}.json").read_text())
-    diff = missing_or_changed(want, json.loads(json.dumps(summary)))
+    diff = json_differences(want, json.loads(json.dumps(summary)))
     assert not diff, "\n".join(diff[:20])
 
 
@@ -322,11 +322,14 @@ def main() -> None:
     filt = HERE / "filter"
     filt.mkdir(exist_ok=True)
     make_logs(filt)
-    expected = {}
+    expected, estimates = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         for case in CASES:
-            expected[case_key(*case)] = run_filter_case(filt, Path(tmp), *case)
+            expected[case_key(*case)], text = run_filter_case(filt, Path(tmp), *case)
+            if text is not None:
+                estimates[case_key(*case)] = text
     (filt / "expected.json").write_text(json.dumps(expected, indent=1, sort_keys=True) + "\n")
+    write_estimates(filt / ESTIMATES, estimates)
     for sub in ("experiments", "experiments_full"):
         (HERE / sub).mkdir(exist_ok=True)
     for name, (_, _, runs, seed) in SHRINK.items():

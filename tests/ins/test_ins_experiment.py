@@ -21,6 +21,7 @@ def test_registered():
     assert "ins" in load_all()
 
 
+@pytest.mark.golden
 def test_schema_and_same_seed_same_json(short):
     a = ins.run(2, 5)
     assert_unchanged("ins", a.summary)
