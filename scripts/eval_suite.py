@@ -57,9 +57,12 @@ SCENES = ("overhead", "mast", "side", "junction")
 PEERS = ("sort", "bytetrack")
 # the peer a user would pick instead of vtrack: the appearance model's boxes on every frame
 # (`vtrack track` with kind = "appearance", boxes down to a score of 0.1 for ByteTrack's
-# second stage) tracked by ByteTrack at the `trackers` package's defaults
+# second stage) tracked by ByteTrack, its thresholds set to YOLOX-Nano's scores (the
+# package's defaults, 0.7 to start a track and 0.6 for a first-stage box, suit a stronger
+# detector: with them it starts almost no track on these scenes)
 APPEARANCE_PEER = "yolox+bytetrack"
 APPEARANCE_CONFIG = '[detector]\nkind = "appearance"\nappearance_score = 0.1\n'
+APPEARANCE_BYTETRACK = {"track_activation_threshold": 0.3, "high_conf_det_threshold": 0.3}
 METRICS = ("mota", "idf1", "hota", "id_switches", "false_positives", "misses")
 MOVED_METRICS = ("mota", "idf1", "hota")
 HIGHER_IS_BETTER = {"mota", "idf1", "hota"}
@@ -182,17 +185,19 @@ def read_detections(path: Path) -> np.ndarray:
             else np.zeros((0, 10)))
 
 
-def peer_rows(name: str, dets: np.ndarray, frames: int, fps: float) -> np.ndarray:
+def peer_rows(name: str, dets: np.ndarray, frames: int, fps: float, **options: float
+              ) -> np.ndarray:
     """Track detections (rows of MOT columns: frame, -, x, y, w, h, conf) with a peer of
-    the `trackers` package; its rows (frame, id, x, y, w, h), sorted by frame then id."""
+    the `trackers` package (`options`: its tracker's keyword arguments); its rows (frame,
+    id, x, y, w, h), sorted by frame then id."""
     import supervision as sv
     from trackers import ByteTrackTracker, SORTTracker
 
-    tracker = (SORTTracker if name == "sort" else ByteTrackTracker)(frame_rate=fps)
+    tracker = (SORTTracker if name == "sort" else ByteTrackTracker)(frame_rate=fps, **options)
     by_frame = {int(f): dets[dets[:, 0] == f] for f in np.unique(dets[:, 0])}
     rows = []
     for n in range(1, frames + 1):
-        d = by_frame.get(n, np.zeros((0, 6)))
+        d = by_frame.get(n, np.zeros((0, 10)))
         xyxy = np.column_stack([d[:, 2], d[:, 3], d[:, 2] + d[:, 4], d[:, 3] + d[:, 5]])
         result = tracker.update(sv.Detections(xyxy=xyxy.reshape(-1, 4).astype(float),
                                               confidence=d[:, 6].astype(float)))
@@ -203,11 +208,13 @@ def peer_rows(name: str, dets: np.ndarray, frames: int, fps: float) -> np.ndarra
     return np.array(rows, dtype=float).reshape(-1, 6)
 
 
-def run_peer(name: str, detections: Path, fps: float, frames: int, out: Path) -> Path:
+def run_peer(name: str, detections: Path, fps: float, frames: int, out: Path,
+             **options: float) -> Path:
     """Track vtrack's detections with a peer of the `trackers` package; writes MOT rows."""
     path = out / f"tracks_{name}.csv"
     with path.open("w") as f:
-        for n, tid, x, y, w, h in peer_rows(name, read_detections(detections), frames, fps):
+        for n, tid, x, y, w, h in peer_rows(name, read_detections(detections), frames, fps,
+                                            **options):
             f.write(f"{int(n)},{int(tid)},{x:.2f},{y:.2f},{w:.2f},{h:.2f},1,-1,-1,-1\n")
     return path
 
@@ -220,7 +227,7 @@ def appearance_peer(video: Path, out: Path, lines: list[list[float]], summary: d
     config.write_text(APPEARANCE_CONFIG)
     track(video, out, lines, str(config))
     path = run_peer("bytetrack", out / "detections.csv", summary["fps_video"],
-                    summary["frames"], out)
+                    summary["frames"], out, **APPEARANCE_BYTETRACK)
     return path.rename(out.parent / f"tracks_{APPEARANCE_PEER}.csv")
 
 
@@ -383,7 +390,7 @@ def summarise(results: list[Result], trackers: list[str]) -> dict:
 def print_table(results: list[Result], trackers: list[str], summary: dict) -> None:
     synth = [r for r in results if r.kind == "synthetic"]
     if synth:
-        print(f"{'synthetic clip':<22}{'tracker':<11}{'MOTA':>7}{'IDF1':>7}{'HOTA':>7}"
+        print(f"{'synthetic clip':<22}{'tracker':<16}{'MOTA':>7}{'IDF1':>7}{'HOTA':>7}"
               f"{'IDsw':>6}{'FP':>6}{'FN':>6}{'det.recall':>12}")
         for r in synth:
             if r.error:
@@ -394,7 +401,7 @@ def print_table(results: list[Result], trackers: list[str], summary: dict) -> No
                 if s:
                     first = t == trackers[0]
                     ceiling = f"{r.detector['recall']:12.3f}" if first and r.detector else ""
-                    print(f"{r.clip if first else '':<22}{t:<11}{s['mota']:7.3f}"
+                    print(f"{r.clip if first else '':<22}{t:<16}{s['mota']:7.3f}"
                           f"{s['idf1']:7.3f}{s['hota']:7.3f}{s['id_switches']:6d}"
                           f"{s['false_positives']:6d}{s['misses']:6d}{ceiling}")
         for agg in ("mean", "worst", "combined"):
@@ -408,7 +415,7 @@ def print_table(results: list[Result], trackers: list[str], summary: dict) -> No
                 first = t == trackers[0]
                 ceiling = (f"{det[f'recall_{agg}']:12.3f}"
                            if first and f"recall_{agg}" in det else "")
-                print(f"{agg if first else '':<22}{t:<11}{v[0]:7.3f}{v[1]:7.3f}"
+                print(f"{agg if first else '':<22}{t:<16}{v[0]:7.3f}{v[1]:7.3f}"
                       f"{v[2]:7.3f}{v[3]:6.0f}{v[4]:6.0f}{v[5]:6.0f}{ceiling}")
         print("det.recall: the share of the ground truth the raw detections match (IoU >= "
               "0.5, one to one),\nthe ceiling of a tracker's MOTA on them without coasting; "
@@ -433,17 +440,17 @@ def print_moved(results: list[Result], trackers: list[str], summary: dict) -> No
     if not rows:
         return
     print(f"{'vehicles once moved':<22}{'moved':>7}{'det.rec':>8}"
-          + "".join(f"{t + ' MOTA/IDF1/HOTA':>26}" for t in trackers))
+          + "".join(f"{t + ' MOTA/IDF1/HOTA':>31}" for t in trackers))
     for r in rows:
         print(f"{r.clip:<22}{r.detector['moved_share']:7.3f}"
               f"{r.detector.get('recall_moved', float('nan')):8.3f}" + "".join(
-            f"{'':>5}" + " / ".join(f"{r.scores[t]['moved'][m]:6.3f}" for m in MOVED_METRICS)
+            f"{'':>10}" + " / ".join(f"{r.scores[t]['moved'][m]:6.3f}" for m in MOVED_METRICS)
             for t in trackers))
     share = summary.get("detector", {}).get("moved_share_mean", float("nan"))
     seen = summary.get("detector", {}).get("recall_moved_mean", float("nan"))
     print(f"{'mean':<22}{share:7.3f}{seen:8.3f}" + "".join(
-        f"{'':>5}" + " / ".join(f"{summary[t]['moved'][m + '_mean']:6.3f}"
-                                for m in MOVED_METRICS) for t in trackers))
+        f"{'':>10}" + " / ".join(f"{summary[t]['moved'][m + '_mean']:6.3f}"
+                                 for m in MOVED_METRICS) for t in trackers))
     print("moved: the share of the visible ground truth whose vehicle has moved half a box "
           "scale from where\nit was first seen (the rest, parked or queued from the start, "
           "is background to MOG2): the ceiling\nof any motion detector's MOTA; the scores "
@@ -498,7 +505,7 @@ def print_false_positives(results: list[Result], trackers: list[str]) -> None:
     if not results:
         return
     heads = ("coasted", "false det.", "box off det.", "other")
-    print(f"{'false positives':<22}{'tracker':<11}" + "".join(f"{h:>13}" for h in heads)
+    print(f"{'false positives':<22}{'tracker':<16}" + "".join(f"{h:>13}" for h in heads)
           + " |" + "".join(f"{h:>11}" for h in SHAPES))
     total = {t: dict.fromkeys(CLASSES + SHAPES, 0) for t in trackers}
     for r in results:
@@ -509,11 +516,11 @@ def print_false_positives(results: list[Result], trackers: list[str]) -> None:
             fp = fp | r.scores[t]["fp_shapes"]
             for c in CLASSES + SHAPES:
                 total[t][c] += fp[c]
-            print(f"{r.clip if t == trackers[0] else '':<22}{t:<11}"
+            print(f"{r.clip if t == trackers[0] else '':<22}{t:<16}"
                   + "".join(f"{fp[c]:13d}" for c in CLASSES) + " |"
                   + "".join(f"{fp[c]:11d}" for c in SHAPES))
     for t in trackers:
-        print(f"{'sum' if t == trackers[0] else '':<22}{t:<11}"
+        print(f"{'sum' if t == trackers[0] else '':<22}{t:<16}"
               + "".join(f"{total[t][c]:13d}" for c in CLASSES) + " |"
               + "".join(f"{total[t][c]:11d}" for c in SHAPES))
     print("a tracker row no visible ground truth matches, by cause: coasted (no detection), "
@@ -530,7 +537,7 @@ def print_counts(results: list[Result], trackers: list[str], summary: dict, kind
     rows where the truth and every count are 0 are left out."""
     if not results:
         return
-    head = "".join(f"{t:>14}" for t in trackers)
+    head = "".join(f"{t:>16}" for t in trackers)
     hidden = truth == "true"       # synthetic: the true crossings made out of sight beside
     print(f"{kind:<44}{'line':>7}{'dir':>5}{truth:>8}{'hidden' if hidden else '':>7}{head}")
     for r in results:
@@ -547,7 +554,7 @@ def print_counts(results: list[Result], trackers: list[str], summary: dict, kind
                 for t in trackers:
                     c = r.counts[t][k][d]
                     e = count_error(c, lo, hi)
-                    cells += f"{c:>9d}" + (f" ({e:+d})" if e else "     ")
+                    cells += f"{c:>11d}" + (f" ({e:+d})" if e else "     ")
                 print(f"{r.clip[:43]:<44}{label:>7}{'fwd' if d == 0 else 'bwd':>5}"
                       f"{hand:>8}{out_of_sight}{cells}")
     for t in trackers:

@@ -16,6 +16,7 @@ from vtrack.analytics.bins import TimeBins, count_rows, speed_rows
 from vtrack.analytics.gates import GateCounter
 from vtrack.cli import main
 from vtrack.errors import InputError
+from vtrack.vision.appearance import VEHICLE_CLASSES
 
 
 def _csv(path: Path) -> list[dict]:
@@ -125,8 +126,8 @@ units = "fraction"
 
 
 def test_run_writes_movements_against_the_truth(synth_video, tmp_path, load_script):
-    """Without a calibration: movements.csv's zeros for every ordered pair and bin, class
-    all, its sums equal summary.json's, and the counts equal the true vehicles' own passes
+    """Without a calibration: movements.csv's zeros for every ordered pair, bin and
+    appearance class (the default detector is hybrid), its sums equal summary.json's, and the counts equal the true vehicles' own passes
     through the same gates (eval_survey on gt.csv) within one per movement; speeds.csv has
     its header only."""
     src = synth_video(0)
@@ -142,8 +143,9 @@ def test_run_writes_movements_against_the_truth(synth_video, tmp_path, load_scri
     assert list(rows[0]) == ["bin_start_s", "bin_end_s", "from", "to", "class", "count"]
     pairs = {(r["from"], r["to"]) for r in rows}
     assert len(pairs) == 6 and all(a != b for a, b in pairs)
-    assert len(rows) == 6 * len({r["bin_start_s"] for r in rows}) and {
-        r["class"] for r in rows} == {"all"}
+    listed = [r for r in rows if r["class"] in VEHICLE_CLASSES]
+    assert len(listed) == 6 * len({r["bin_start_s"] for r in rows}) * len(VEHICLE_CLASSES)
+    assert {r["class"] for r in rows} - set(VEHICLE_CLASSES) <= {"unknown"}
     binned = defaultdict(int)
     for r in rows:
         binned[(r["from"], r["to"])] += int(r["count"])

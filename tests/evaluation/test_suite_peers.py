@@ -40,3 +40,16 @@ def test_peer_tracks_two_cars(load_script, peer) -> None:
     assert scores["id_switches"] == 0
     assert scores["false_positives"] == 0
     assert scores["mota"] >= 0.9    # a peer may take a few frames to start a track
+
+
+def test_appearance_peer_starts_tracks_on_yolox_nano_scores(load_script) -> None:
+    """The YOLOX + ByteTrack peer's thresholds (eval_suite.APPEARANCE_BYTETRACK) start tracks
+    on boxes scored like YOLOX-Nano's (0.45); at the package's defaults (0.7 to start a
+    track) ByteTrack starts none, which is why the suite sets them."""
+    pytest.importorskip("trackers")
+    suite = load_script("eval_suite")
+    dets = _truth()
+    dets[:, 1], dets[:, 6] = -1, 0.45
+    tuned = suite.peer_rows("bytetrack", dets, FRAMES, FPS, **suite.APPEARANCE_BYTETRACK)
+    assert len(np.unique(tuned[:, 1])) == 2 and len(tuned) >= 2 * (FRAMES - 5)
+    assert len(suite.peer_rows("bytetrack", dets, FRAMES, FPS)) == 0

@@ -32,8 +32,8 @@ from vtrack.analytics.ground import (contact_points, contact_velocities, footpri
 from vtrack.analytics.gates import GateCounter
 from vtrack.analytics.lines import LineCounter
 from vtrack.analytics.regions import CountLine, Gate, Zone
-from vtrack.analytics.vehicles import (CLASSES, MIN_LENGTH_SPEED, SPEED_SIGMA_MAX,
-                                       VehicleRecord)
+from vtrack.analytics.vehicles import (CLASS_ORDER, CLASSES, MIN_LENGTH_SPEED,
+                                       SPEED_SIGMA_MAX, VehicleRecord)
 from vtrack.analytics.zones import ZoneCounter
 from vtrack.fileio import append_csv, write_csv
 from vtrack.vision.appearance import VEHICLE_CLASSES
@@ -63,8 +63,8 @@ class TrafficAnalytics:
                  bin_settle_s: float = 120.0, gates: Sequence[Gate] = (),
                  looks_classes: Sequence[str] = ()) -> None:
         """`looks_classes`: the classes an appearance detector gives (none with MOG2
-        alone): without a calibration, counts.csv and movements.csv then hold a row per
-        such class beside `all`."""
+        alone): without a calibration, counts.csv and movements.csv then count per such
+        class (and `unknown` for vehicles it never saw) instead of `all`."""
         if calibration is not None:
             calibration.check_frame_size(width, height)
         self.out = Path(out_dir)
@@ -82,8 +82,11 @@ class TrafficAnalytics:
         self.gates = GateCounter([g.name for g in gates],
                                  [g.pixels(width, height) for g in gates],
                                  [g.line is not None for g in gates])
-        self.classes = (tuple(dict.fromkeys((*CLASSES, *looks_classes)))
-                        if calibration is not None else ("all", *looks_classes))
+        known = set(looks_classes)
+        self.looks = bool(known)
+        if calibration is not None:
+            known |= set(CLASSES)
+        self.classes = tuple(c for c in CLASS_ORDER if c in known) or ("all",)
         self.line_keys = [(l.name or str(k), d) for k, l in enumerate(self.lines)
                           for d in DIRECTIONS]
         self.bins = TimeBins(bin_seconds, bin_settle_s)             # counts.csv
@@ -200,21 +203,19 @@ class TrafficAnalytics:
         self.counter.forget(tid)
         self._pending["zone_events.csv"].extend(ev.row() for ev in self.zones.end_track(tid))
         calibrated = self.calibration is not None
-        cls = (rec.figures()[3] or "unknown") if calibrated else "all"
-        # without a calibration a class the appearance model knows counts beside `all`
-        counted = [cls] if calibrated or not rec.looks.votes else [cls, rec.looks.best()]
+        if calibrated:
+            cls = rec.figures()[3] or "unknown"
+        else:   # the appearance class, or `all` with MOG2 alone (no class known)
+            cls = (rec.looks.best() or "unknown") if self.looks else "all"
         for time, line, direction, speed in rec.crossings:
             key = self.line_keys[2 * line + DIRECTIONS.index(direction)]
-            for c in counted:
-                self.bins.add(time, key, c)
+            self.bins.add(time, key, cls)
             if calibrated and speed is not None and np.isfinite(speed):
                 for c in (cls, "all"):
                     self.speed_bins.add(time, key, c, 3.6 * speed)
         movement = self.gates.end_track(tid)
         if movement is not None:
-            for c in counted:
-                self.movement_bins.add(movement.time,
-                                       (movement.origin, movement.destination), c)
+            self.movement_bins.add(movement.time, (movement.origin, movement.destination), cls)
         self._pending["vehicles.csv"].append(rec.row(calibrated))
 
     # ------------------------------------------------------------------- writing

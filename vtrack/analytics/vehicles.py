@@ -44,6 +44,8 @@ CLASSES = tuple(name for name, _ in CLASS_BOUNDS_M)
 CLASS_HEIGHT_M = {"motorcycle": 1.4, "car": 1.5, "van": 2.3, "truck": 3.6}
 
 
+# every class a vehicle may have, in the order of the output files (the contract's)
+CLASS_ORDER = ("motorcycle", "bicycle", "car", "van", "bus", "truck")
 # classes the appearance model tells better than a length does
 LOOKS_DECIDE = ("bicycle", "motorcycle", "bus")
 

@@ -26,8 +26,9 @@ from vtrack.errors import InputError
 from vtrack.fileio import open_input, write_text
 from vtrack.report.svg import bar_chart, legend, track_map
 
-CLASS_COLOURS = {"motorcycle": "#9b51e0", "car": "#2f80ed", "van": "#f2994a",
-                 "truck": "#eb5757", "unknown": "#9aa3ad", "all": "#2f80ed"}
+CLASS_COLOURS = {"motorcycle": "#9b51e0", "bicycle": "#27ae60", "car": "#2f80ed",
+                 "van": "#f2994a", "bus": "#f2c94c", "truck": "#eb5757", "unknown": "#9aa3ad",
+                 "all": "#2f80ed"}
 MAX_TRACKS_DRAWN = 3000
 POINTS_PER_TRACK = 80
 SPEED_BIN_KMH = 10

@@ -49,29 +49,21 @@ SHIPPED_SHA256 = "695e750a5d5754bb5a8d5325643b59282191a7e7a564e435a415fd3c578eab
 @dataclass
 class AppearanceBoxes:
     """Road users found by appearance in one frame: boxes (K, 4) x, y, w, h in the frame's
-    pixels, scores (K,) in 0..1, classes (K,) indices into VEHICLE_CLASSES."""
+    pixels, scores (K,) in 0..1, classes (K,) indices into VEHICLE_CLASSES; `scale`: the
+    model's input pixels per frame pixel of the pass (the letterbox's r)."""
 
     boxes: np.ndarray
     scores: np.ndarray
     classes: np.ndarray
+    scale: float = 1.0
 
     def __len__(self) -> int:
         return len(self.scores)
 
-    @staticmethod
-    def empty() -> AppearanceBoxes:
-        return AppearanceBoxes(np.zeros((0, 4)), np.zeros(0), np.zeros(0, dtype=int))
-
-    @staticmethod
-    def concat(parts: list[AppearanceBoxes]) -> AppearanceBoxes:
-        if not parts:
-            return AppearanceBoxes.empty()
-        return AppearanceBoxes(np.concatenate([p.boxes for p in parts]),
-                               np.concatenate([p.scores for p in parts]),
-                               np.concatenate([p.classes for p in parts]))
-
     def take(self, keep: np.ndarray) -> AppearanceBoxes:
-        return AppearanceBoxes(self.boxes[keep], self.scores[keep], self.classes[keep])
+        """The boxes where `keep` (K,) holds."""
+        return AppearanceBoxes(self.boxes[keep], self.scores[keep], self.classes[keep],
+                               self.scale)
 
 
 def shipped_model() -> Path:
@@ -277,4 +269,6 @@ class AppearanceModel:
         boxes /= r
         boxes[:, :2] += offset
         keep = suppress(boxes, scores, coco, self.nms_iou, self.cross_iou)
-        return with_riders(boxes[keep], scores[keep], coco[keep])
+        found = with_riders(boxes[keep], scores[keep], coco[keep])
+        found.scale = r
+        return found

@@ -70,6 +70,7 @@ from vtrack.vision.stabilise import (IDENTITY, Stabiliser, border_edges_kept, co
 Pieces = tuple[np.ndarray, np.ndarray]   # a blob's pieces: boxes (n, 4), pixel counts (n,)
 NO_PIECES: Pieces = (np.zeros((0, 4)), np.zeros(0))
 HOLD_LAG = 2   # frames between the predicted boxes a frame holds and the frame
+KINDS = ("hybrid", "mog2", "appearance")   # [detector] kind (vision/hybrid.py)
 
 __all__ = ["DetectorConfig", "Detections", "Foreground", "MotionDetector", "downscale_factor"]
 
@@ -84,7 +85,7 @@ class DetectorConfig:
     """The detector ([detector]): MOG2 background subtraction, an appearance model, or both
     fused (hybrid.py)."""
 
-    kind: str = _f("mog2", "which detector: \"mog2\" (background subtraction alone: "
+    kind: str = _f("hybrid", "which detector: \"mog2\" (background subtraction alone: "
                              "moving vehicles), \"appearance\" (the appearance model "
                              "alone, every frame) or \"hybrid\" (MOG2 blobs every frame, "
                              "fused with appearance boxes: standing, queued and merged "
@@ -98,6 +99,9 @@ class DetectorConfig:
                                         "held)")
     appearance_score: float = _f(0.3, "smallest appearance score (objectness x class) "
                                       "kept")
+    appearance_alone_score: float = _f(0.4, "hybrid: smallest appearance score of a box no "
+                                            "motion blob supports (a standing vehicle): "
+                                            "one source of evidence, not two (fusion.py)")
     history: int = _f(500, "MOG2 history: frames the background model remembers")
     var_threshold: float = _f(16.0, "MOG2 squared Mahalanobis distance for foreground")
     var_min: float = _f(16.0, "MOG2 floor on a pixel's variance (grey levels^2): codec and "
@@ -216,12 +220,13 @@ class DetectorConfig:
 
     def validate(self) -> None:
         """Raise ValueError naming the first out-of-range field."""
-        if self.kind not in ("hybrid", "mog2", "appearance"):
+        if self.kind not in KINDS:
             raise ValueError(f"detector.kind must be \"hybrid\", \"mog2\" or "
                              f"\"appearance\", not {self.kind!r}")
         checks = {
             "appearance_seconds": self.appearance_seconds >= 0,
             "appearance_score": 0 < self.appearance_score <= 1,
+            "appearance_alone_score": 0 <= self.appearance_alone_score <= 1,
             "history": self.history >= 1,
             "var_threshold": self.var_threshold > 0,
             "var_min": self.var_min > 0,
@@ -385,6 +390,17 @@ class MotionDetector:
 
     def close(self) -> None:
         """Nothing to release (the fused detector stops its worker here)."""
+
+    def in_roi(self, points: np.ndarray) -> np.ndarray:
+        """(n,) whether each point (n, 2) of the frame (pixels) lies in the region of
+        interest (everywhere without one)."""
+        roi = self.clean.roi
+        if roi is None or not len(points):
+            return np.ones(len(points), dtype=bool)
+        h, w = roi.shape[:2]
+        u = np.clip((points[:, 0] / self._sx).astype(int), 0, w - 1)
+        v = np.clip((points[:, 1] / self._sy).astype(int), 0, h - 1)
+        return roi[v, u] > 0
 
     def initialise(self, images: Iterable[np.ndarray], prepared: bool = False) -> None:
         """Start the background model from `images` (frames sampled across the first

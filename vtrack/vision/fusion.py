@@ -8,12 +8,16 @@ piece of a vehicle inside its box). Then, per blob:
   cars merged along the line of sight, a car and a motorcycle, a row of riders;
 - one linked appearance box that covers at least `COVER_SHARE` of its box explains it: the
   blob is replaced by it (BOTH): the vehicle without the blob's shadow, a truck broken into
-  pieces made whole;
+  pieces made whole; but where the box is small in the model's own pixels (under
+  `SMALL_MODEL_PX` on a side: a far vehicle, whose box the model places to a few pixels)
+  the blob keeps its geometry and takes the box's class and score (BOTH);
 - otherwise the blob stays a detection (MOTION): the model sees its vehicle only partly,
   or not at all (seen from straight above, a type it was not trained on), and appearance
   adds evidence where it has some; it never vetoes a moving blob.
 Appearance boxes linked to no blob (standing, queued, far vehicles) are detections of
-their own (APPEARANCE); those linked only to blobs they do not explain are dropped (the
+their own (APPEARANCE) when their score reaches `alone_score`, higher than the model's own
+floor (one source of evidence, not two: a low score on a shadow or a patch of road starts a
+track that nothing moves); those linked only to blobs they do not explain are dropped (the
 blob measures that vehicle).
 
 Between two appearance passes (`follow`) each appearance box rides on the blobs it
@@ -21,8 +25,8 @@ explained (its carrier: their union): on the next frame the blobs linked to the 
 its new carrier, and the box keeps its place and size relative to it (the box in the
 carrier's own coordinates, `relative` / `placed`). So the tracker is measured with the same
 whole boxes on every frame, not whole boxes on pass frames and blobs with their shadows,
-merges and pieces on the frames between. A carrier that changes size by more than
-`CARRIER_CHANGE` in a frame (another vehicle merged into the blob, the vehicle left it)
+merges and pieces on the frames between. A carrier whose size has changed by more than
+`CARRIER_CHANGE` since the pass (another vehicle merged into the blob, the vehicle left it)
 drops its riders and the blobs are motion detections again until the next pass. A box with
 no carrier (a standing vehicle) is held while no blob links to it.
 """
@@ -40,7 +44,8 @@ MOTION, APPEARANCE, BOTH = 0, 1, 2
 PROVENANCE = ("motion", "appearance", "both")
 LINK_SHARE = 0.5
 COVER_SHARE = 0.5
-CARRIER_CHANGE = 1.4   # largest ratio of a carrier's width or height from frame to frame
+SMALL_MODEL_PX = 24.0  # a box smaller than this on a side, in model pixels, is placed loosely
+CARRIER_CHANGE = 1.25  # largest ratio of a carrier's width or height to those at the pass
 
 
 @dataclass
@@ -48,7 +53,8 @@ class Fused:
     """One frame's fused detections: boxes (K, 4), foreground areas (K,) (a box's area
     where no blob measured it), provenance (K,), scores (K,) (1 for motion-only blobs) and
     classes (K,) (index into appearance.VEHICLE_CLASSES, -1 unknown); for each row of an
-    appearance box, the union of the blobs it explained (its carrier; NaN: none) (K, 4)."""
+    appearance box, the union of the blobs it explained (its carrier; NaN: none) (K, 4),
+    and that carrier as it was at the appearance pass (`first`, K, 4)."""
 
     boxes: np.ndarray
     areas: np.ndarray
@@ -56,17 +62,18 @@ class Fused:
     score: np.ndarray
     cls: np.ndarray
     carrier: np.ndarray
+    first: np.ndarray
 
     def riders(self) -> Fused:
         """The appearance rows (those that ride on to the next frame, `follow`)."""
         keep = self.source != MOTION
         return Fused(self.boxes[keep], self.areas[keep], self.source[keep], self.score[keep],
-                     self.cls[keep], self.carrier[keep])
+                     self.cls[keep], self.carrier[keep], self.first[keep])
 
     @staticmethod
     def empty() -> Fused:
         return Fused(np.zeros((0, 4)), np.zeros(0), np.zeros(0, int), np.zeros(0),
-                     np.zeros(0, int), np.zeros((0, 4)))
+                     np.zeros(0, int), np.zeros((0, 4)), np.zeros((0, 4)))
 
 
 def union(boxes: np.ndarray) -> np.ndarray:
@@ -112,28 +119,34 @@ def coverage(blob: np.ndarray, boxes: np.ndarray) -> float:
     return float(covered.mean())
 
 
-def fuse(blobs: np.ndarray, areas: np.ndarray, app: AppearanceBoxes) -> Fused:
+def fuse(blobs: np.ndarray, areas: np.ndarray, app: AppearanceBoxes, alone_score: float = 0.0
+         ) -> Fused:
     """The fused detections of motion blobs (B, 4) with foreground areas (B,) and the
-    appearance boxes `app` of the same frame and pixels (see the module's rules). Motion
-    rows come first in blob order, then appearance rows in `app`'s order."""
+    appearance boxes `app` of the same frame and pixels (see the module's rules; boxes on no
+    blob need `alone_score`). Motion rows come first in blob order, then appearance rows in
+    `app`'s order."""
     link = links(blobs, app.boxes)
     explained = np.array([link[b].sum() >= 2
                           or coverage(blobs[b], app.boxes[link[b]]) >= COVER_SHARE
                           for b in range(len(blobs))], dtype=bool)
     motion = ~explained
     # an appearance box is kept if it explains a blob or is linked to none
-    keep_app = link[explained].any(axis=0) | ~link.any(axis=0)
+    keep_app = link[explained].any(axis=0) | (~link.any(axis=0) & (app.scores >= alone_score))
     both = link[explained].any(axis=0)
     a = np.flatnonzero(keep_app)
+    boxes, box_areas = app.boxes[a].copy(), np.prod(app.boxes[a, 2:], axis=1)
+    small = app.boxes[a, 2:].min(axis=1) * app.scale < SMALL_MODEL_PX
     carriers = np.full((len(a), 4), np.nan)
     for row, k in enumerate(a):
-        held = link[:, k] & explained
-        if held.any():
-            carriers[row] = union(blobs[held])
+        held = np.flatnonzero(link[:, k] & explained)
+        if not len(held):
+            continue
+        carriers[row] = union(blobs[held])
+        if small[row] and len(held) == 1 and link[held[0]].sum() == 1:
+            boxes[row], box_areas[row] = blobs[held[0]], areas[held[0]]
     return _joined(blobs[motion], areas[motion], Fused(
-        app.boxes[a], np.prod(app.boxes[a, 2:], axis=1),
-        np.where(both[a], BOTH, APPEARANCE).astype(int), app.scores[a],
-        app.classes[a].astype(int), carriers))
+        boxes, box_areas, np.where(both[a], BOTH, APPEARANCE).astype(int), app.scores[a],
+        app.classes[a].astype(int), carriers, carriers.copy()))
 
 
 def _joined(blobs: np.ndarray, areas: np.ndarray, app: Fused) -> Fused:
@@ -144,7 +157,8 @@ def _joined(blobs: np.ndarray, areas: np.ndarray, app: Fused) -> Fused:
                  np.concatenate([np.full(n, MOTION), app.source]).astype(int),
                  np.concatenate([np.ones(n), app.score]),
                  np.concatenate([np.full(n, -1), app.cls]).astype(int),
-                 np.concatenate([np.full((n, 4), np.nan), app.carrier]))
+                 np.concatenate([np.full((n, 4), np.nan), app.carrier]),
+                 np.concatenate([np.full((n, 4), np.nan), app.first]))
 
 
 def follow(riders: Fused, blobs: np.ndarray, areas: np.ndarray) -> Fused:
@@ -162,7 +176,7 @@ def follow(riders: Fused, blobs: np.ndarray, areas: np.ndarray) -> Fused:
         if not held.any():
             continue
         new = union(blobs[held])
-        change = new[2:] / np.maximum(riders.carrier[r, 2:], 1e-9)
+        change = new[2:] / np.maximum(riders.first[r, 2:], 1e-9)
         if np.any((change > CARRIER_CHANGE) | (change < 1 / CARRIER_CHANGE)):
             continue
         rel = relative(riders.boxes[r][None], riders.carrier[r][None])
@@ -175,4 +189,4 @@ def follow(riders: Fused, blobs: np.ndarray, areas: np.ndarray) -> Fused:
     k = np.flatnonzero(keep)
     return _joined(blobs[~taken], areas[~taken], Fused(
         boxes[k], np.prod(boxes[k, 2:], axis=1), riders.source[k], riders.score[k],
-        riders.cls[k], carriers[k]))
+        riders.cls[k], carriers[k], riders.first[k]))

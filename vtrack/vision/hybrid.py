@@ -29,19 +29,19 @@ from vtrack.vision.appearance import AppearanceModel
 from vtrack.vision.detect import Detections, DetectorConfig, Foreground, MotionDetector
 from vtrack.vision.fusion import Fused, follow, fuse
 
-KINDS = ("hybrid", "mog2", "appearance")
-
-
 class FusedDetector:
     """MOG2 blobs and appearance boxes fused, behind the interface of MotionDetector (the
     image stages are its own; `request` must be called with each frame's full image, in
     order, before that frame is located)."""
 
     def __init__(self, motion: MotionDetector, model: AppearanceModel, every: int,
-                 motion_blobs: bool = True, threaded: bool = True) -> None:
+                 motion_blobs: bool = True, threaded: bool = True, alone_score: float = 0.0
+                 ) -> None:
         """`motion_blobs` False: appearance alone (kind "appearance"); `threaded` False:
-        each pass runs when its frame is located, in the caller's thread (--profile)."""
+        each pass runs when its frame is located, in the caller's thread (--profile);
+        `alone_score`: fusion.fuse's."""
         self.motion = motion
+        self.alone_score = alone_score
         self.model = model
         self.every = max(1, every)
         self.motion_blobs = motion_blobs
@@ -50,7 +50,6 @@ class FusedDetector:
         self._pending: deque[Future | np.ndarray | None] = deque()
         self._requested = 0
         self._riders = Fused.empty()
-        self.passes = 0
 
     def __getattr__(self, name: str) -> Any:
         """The image stages and their state (prepare, align, subtract, segment, initialise,
@@ -83,8 +82,8 @@ class FusedDetector:
         job = self._pending.popleft() if self._pending else None
         if job is not None:
             app = job.result() if isinstance(job, Future) else self.model.detect(job)
-            f = fuse(dets.boxes, dets.areas, app)
-            self.passes += 1
+            app = app.take(self.motion.in_roi(centre(app.boxes)))   # the user's ROI only
+            f = fuse(dets.boxes, dets.areas, app, self.alone_score)
         else:   # between passes: the boxes ride on their blobs or stand
             f = follow(self._riders, dets.boxes, dets.areas)
         self._riders = f.riders()
@@ -111,5 +110,6 @@ def make_detector(cfg: DetectorConfig, width: int, height: int, fps: float = 25.
         return motion
     model = AppearanceModel(cfg.appearance_model or None, min_score=cfg.appearance_score)
     every = 1 if cfg.kind == "appearance" else max(1, round(cfg.appearance_seconds * fps))
-    return FusedDetector(motion, model, every, motion_blobs=cfg.kind == "hybrid",
-                         threaded=threaded)
+    hybrid = cfg.kind == "hybrid"
+    return FusedDetector(motion, model, every, motion_blobs=hybrid, threaded=threaded,
+                         alone_score=cfg.appearance_alone_score if hybrid else 0.0)
