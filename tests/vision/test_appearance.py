@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 
 from vtrack.cli import main
-from vtrack.errors import InputError
 from vtrack.vision.appearance import (SHIPPED_SHA256, VEHICLE_CLASSES, AppearanceBoxes,
                                       AppearanceModel, decode, grid, shipped_model,
                                       with_riders)
