@@ -92,7 +92,7 @@ class DetectorConfig:
                              "vehicles; docs/DETECTOR.md)")
     appearance_model: str = _f("", "a YOLOX-format ONNX model (COCO classes); empty: the "
                                    "YOLOX-Nano shipped inside vtrack")
-    appearance_seconds: float = _f(0.2, "hybrid: the appearance model looks at the whole "
+    appearance_seconds: float = _f(0.1, "hybrid: the appearance model looks at the whole "
                                         "frame every this many seconds of video (every "
                                         "frame of a video slower than 1 / this; between "
                                         "passes the boxes of vehicles that stand are "
