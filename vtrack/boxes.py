@@ -31,6 +31,13 @@ def paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return inter / np.maximum(a[..., 2] * a[..., 3] + b[..., 2] * b[..., 3] - inter, 1e-9)
 
 
+def enclosing(boxes: np.ndarray) -> np.ndarray:
+    """The box (4,) around boxes (n >= 1, 4)."""
+    x0, y0 = boxes[:, :2].min(axis=0)
+    x1, y1 = (boxes[:, :2] + boxes[:, 2:]).max(axis=0)
+    return np.array([x0, y0, x1 - x0, y1 - y0])
+
+
 def clip(boxes: np.ndarray, width: float, height: float) -> np.ndarray:
     """Boxes (n, 4) cut to the image [0, width] x [0, height] (may become empty)."""
     x0 = np.clip(boxes[:, 0], 0, width)

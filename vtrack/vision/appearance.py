@@ -2,8 +2,7 @@
 by how they look, standing or moving (Ge et al. 2021, "YOLOX: Exceeding YOLO Series in
 2021", arXiv 2107.08430).
 
-One pass (`AppearanceModel.detect`) on a region of the frame (the whole frame, or a tile of
-it at full resolution for far vehicles):
+One pass (`AppearanceModel.detect`) on the whole frame:
 1. letterbox: resize keeping the aspect ratio to the model's input side S (read from the
    model), pad with grey 114 at the right and bottom (YOLOX's own preprocessing: BGR,
    0-255, no mean or std);
@@ -30,7 +29,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from vtrack.boxes import intersection, iou
+from vtrack.boxes import enclosing, intersection, iou
 from vtrack.errors import InputError
 
 # COCO class index -> vtrack class; the person (0) is read only as a rider
@@ -143,14 +142,10 @@ def with_riders(boxes: np.ndarray, scores: np.ndarray, coco: np.ndarray
     for p in np.flatnonzero(person):
         if not len(two):
             break
-        share = intersection(out[two], boxes[p]) / max(
-            boxes[p, 2] * boxes[p, 3], 1e-9)
+        share = intersection(out[two], boxes[p]) / max(boxes[p, 2] * boxes[p, 3], 1e-9)
         k = int(share.argmax())
         if share[k] >= 0.2:
-            v = two[k]
-            x0, y0 = np.minimum(out[v, :2], boxes[p, :2])
-            x1, y1 = np.maximum(out[v, :2] + out[v, 2:], boxes[p, :2] + boxes[p, 2:])
-            out[v] = [x0, y0, x1 - x0, y1 - y0]
+            out[two[k]] = enclosing(np.stack([out[two[k]], boxes[p]]))
     return AppearanceBoxes(out, scores[vehicle], classes)
 
 
@@ -259,15 +254,12 @@ class AppearanceModel:
         self.side = side
         self.min_score, self.nms_iou, self.cross_iou = min_score, nms_iou, cross_iou
 
-    def detect(self, image: np.ndarray, offset: tuple[float, float] = (0.0, 0.0)
-               ) -> AppearanceBoxes:
-        """The road users in `image` (BGR uint8; a crop of the frame whose top-left corner
-        is `offset` in the frame's pixels), in the frame's pixels."""
+    def detect(self, image: np.ndarray) -> AppearanceBoxes:
+        """The road users in the frame `image` (BGR uint8), in its pixels."""
         blob, r = letterbox(image, self.side)
         boxes, scores, coco = decode(self.run(blob), self.cells, self.strides,
                                      self.min_score)
         boxes /= r
-        boxes[:, :2] += offset
         keep = suppress(boxes, scores, coco, self.nms_iou, self.cross_iou)
         found = with_riders(boxes[keep], scores[keep], coco[keep])
         found.scale = r

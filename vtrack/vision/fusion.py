@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.boxes import intersection
+from vtrack.boxes import enclosing, intersection
 from vtrack.vision.appearance import AppearanceBoxes
 
 MOTION, APPEARANCE, BOTH = 0, 1, 2
@@ -74,13 +74,6 @@ class Fused:
     def empty() -> Fused:
         return Fused(np.zeros((0, 4)), np.zeros(0), np.zeros(0, int), np.zeros(0),
                      np.zeros(0, int), np.zeros((0, 4)), np.zeros((0, 4)))
-
-
-def union(boxes: np.ndarray) -> np.ndarray:
-    """The box (4,) around boxes (n >= 1, 4)."""
-    x0, y0 = boxes[:, :2].min(axis=0)
-    x1, y1 = (boxes[:, :2] + boxes[:, 2:]).max(axis=0)
-    return np.array([x0, y0, x1 - x0, y1 - y0])
 
 
 def relative(boxes: np.ndarray, carriers: np.ndarray) -> np.ndarray:
@@ -141,7 +134,7 @@ def fuse(blobs: np.ndarray, areas: np.ndarray, app: AppearanceBoxes, alone_score
         held = np.flatnonzero(link[:, k] & explained)
         if not len(held):
             continue
-        carriers[row] = union(blobs[held])
+        carriers[row] = enclosing(blobs[held])
         if small[row] and len(held) == 1 and link[held[0]].sum() == 1:
             boxes[row], box_areas[row] = blobs[held[0]], areas[held[0]]
     return _joined(blobs[motion], areas[motion], Fused(
@@ -175,7 +168,7 @@ def follow(riders: Fused, blobs: np.ndarray, areas: np.ndarray) -> Fused:
         held = link[i]
         if not held.any():
             continue
-        new = union(blobs[held])
+        new = enclosing(blobs[held])
         change = new[2:] / np.maximum(riders.first[r, 2:], 1e-9)
         if np.any((change > CARRIER_CHANGE) | (change < 1 / CARRIER_CHANGE)):
             continue
