@@ -18,9 +18,9 @@ import pytest
 
 from vtrack.cli import main
 from vtrack.vision.appearance import (SHIPPED_SHA256, VEHICLE_CLASSES, AppearanceBoxes,
-                                      AppearanceModel, decode, grid, shipped_model,
-                                      with_riders)
-from vtrack.vision.fusion import APPEARANCE, BOTH, MOTION, follow, fuse
+                                      AppearanceModel, cut, decode, grid, shipped_model,
+                                      tiles, with_riders)
+from vtrack.vision.fusion import APPEARANCE, BOTH, MOTION, Fused, follow, fuse, renew
 
 ROOT = Path(__file__).resolve().parents[2]
 HANOI = ROOT.parent / "shared" / "videos" / "hanoi_crossroads_queue.mp4"
@@ -184,6 +184,49 @@ def test_a_yolox_format_model_of_any_class_layout_is_read(tmp_path):
     assert len(m.detect(np.zeros((90, 160, 3), np.uint8))) == 0
 
 
+@pytest.mark.parametrize("size", [(1280, 720), (640, 480), (1920, 1080), (320, 240)])
+def test_tiles_cover_the_frame_magnified(size):
+    """The tiles cover every pixel of the frame, overlap, and show it at least 1.75 times
+    as large to a 416 model as the whole-frame pass does."""
+    w, h = size
+    windows = tiles(w, h, 416)
+    assert 2 <= len(windows) <= 4
+    covered = np.zeros((h, w), bool)
+    for x, y, tw, th in windows:
+        covered[y:y + th, x:x + tw] = True
+        assert x >= 0 and y >= 0 and x + tw <= w and y + th <= h
+        assert min(416 / tw, 416 / th) >= 1.75 * min(416 / w, 416 / h)
+    assert covered.all()
+
+
+def test_a_tile_drops_the_boxes_it_cuts():
+    """A box touching a tile's edge inside the frame is cut (its vehicle is whole in the
+    neighbouring tile); one touching the frame's own edge is not."""
+    boxes = np.array([[0, 10, 30, 20], [300, 10, 46, 20], [100, 100, 30, 20],
+                      [100, 230, 30, 30]], float)
+    assert cut(boxes, (0, 0, 346, 260), 640, 480, 2.0).tolist() == [False, True, False,
+                                                                     True]
+
+
+@pytest.mark.skipif(not HANOI.exists(), reason=f"real clip not available: {HANOI}")
+def test_a_tile_finds_in_the_frames_pixels_what_the_whole_frame_finds(model):
+    """The riders of the real queue seen through the left tile are found where the whole
+    frame's pass finds them (the window's offset undone), at least as many of them."""
+    image = _frame(HANOI, 30)
+    h, w = image.shape[:2]
+    whole = model.detect(image)
+    window = tiles(w, h, model.side)[0]
+    part = model.detect(image, window)
+    assert part.window == window and part.scale > 1.7 * whole.scale
+    x, y, tw, th = window
+    c = whole.boxes[:, :2] + whole.boxes[:, 2:] / 2
+    inner = (c[:, 0] > x + 40) & (c[:, 0] < x + tw - 40) & (c[:, 1] > y + 40) \
+        & (c[:, 1] < y + th - 40) & (whole.boxes[:, 2] < tw / 3)
+    assert inner.sum() >= 3 and len(part) >= inner.sum()
+    from vtrack.boxes import iou
+    assert np.median(iou(whole.boxes[inner], part.boxes).max(axis=1)) >= 0.6
+
+
 # ------------------------------------------------------------------ fusion
 
 
@@ -277,6 +320,70 @@ def test_a_rider_leaves_a_blob_that_changes_too_much():
     g = follow(f.riders(), np.array([[100, 100, 130, 40], [405, 100, 60, 40]], float),
                np.array([4000.0, 2000.0]))
     assert g.source.tolist() == [MOTION, MOTION]
+
+
+def _pass(boxes: list[list[float]], classes: list[str], scale: float, whole: float,
+          window: tuple[int, int, int, int] | None = None) -> AppearanceBoxes:
+    app = _app(boxes, classes)
+    app.scale, app.whole, app.window = scale, whole, window
+    return app
+
+
+def test_tiles_look_after_the_far_vehicles_and_the_whole_frame_after_the_near():
+    """A tile's pass gives the far car (8 px high at the whole frame's scale) and not the
+    near one (the whole frame's); the far car's box rides on through a whole-frame pass
+    that does not see it, while that pass renews the near car, and a whole-frame pass that
+    does see it takes it over; a tile renews only the far riders wholly inside it."""
+    blobs = np.array([[100, 20, 24, 16], [400, 300, 120, 80]], float)
+    areas = np.array([300.0, 8000.0])
+    left = (0, 0, 600, 400)
+    f = renew(Fused.empty(), blobs, areas,
+              _pass([[100, 20, 24, 16], [400, 300, 120, 80]], ["car", "car"], 1.0, 0.5, left))
+    assert f.source.tolist() == [MOTION, BOTH]
+    np.testing.assert_allclose(f.boxes, [[400, 300, 120, 80], [100, 20, 24, 16]])
+    g = renew(f.riders(), blobs, areas, _pass([[402, 300, 116, 80]], ["bus"], 0.5, 0.5))
+    assert g.source.tolist() == [BOTH, BOTH]
+    assert [VEHICLE_CLASSES[c] for c in g.cls] == ["bus", "car"]
+    np.testing.assert_allclose(g.boxes, [[402, 300, 116, 80], [100, 20, 24, 16]])
+    seen = renew(g.riders(), blobs, areas, _pass([[98, 18, 28, 20]], ["truck"], 0.5, 0.5))
+    assert seen.source.tolist() == [MOTION, BOTH]        # the bus not seen: its blob
+    assert seen.cls.tolist() == [-1, VEHICLE_CLASSES.index("truck")]
+    np.testing.assert_allclose(seen.boxes[1], [100, 20, 24, 16])   # small: the blob's place
+    for window in [(600, 0, 600, 400), (0, 0, 110, 400)]:   # outside; across its edge
+        assert len(renew(g.riders(), blobs, areas, _pass([], [], 1.0, 0.5, window)).boxes) == 2
+    h = renew(g.riders(), blobs, areas, _pass([], [], 1.0, 0.5, left))
+    assert h.source.tolist() == [MOTION, BOTH]          # the far car's blob; the bus rides on
+    np.testing.assert_allclose(h.boxes, [[100, 20, 24, 16], [402, 300, 116, 80]])
+
+
+def test_without_riders_a_whole_frame_pass_is_the_plain_fusion():
+    """renew with nothing riding and the whole frame's boxes is fuse (tiles off: the
+    detector as it was)."""
+    blobs = np.array([[100, 100, 120, 50], [400, 50, 30, 30]], float)
+    areas = np.array([5000.0, 800.0])
+    app = _app([[100, 102, 70, 46], [175, 105, 30, 45], [600, 300, 40, 30]],
+               ["car", "motorcycle", "car"], [0.8, 0.6, 0.5])
+    a, b = renew(Fused.empty(), blobs, areas, app, 0.4), fuse(blobs, areas, app, 0.4)
+    for name in ("boxes", "areas", "source", "score", "cls"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+def test_the_schedule_puts_the_tiles_half_way_between_whole_frame_passes():
+    """At a pass every 3 frames the whole frame is seen on frames 1, 4, 7, ... and the two
+    tiles in turn on 2, 5, 8, ...; without tiles only the whole frame."""
+    from vtrack.vision.hybrid import FusedDetector
+
+    class _Model:
+        side = 416
+
+    d = FusedDetector(None, _Model(), 3, threaded=False, windows=[(0, 0, 10, 10),
+                                                                 (5, 0, 10, 10)])
+    views = {n: d.view(n) for n in range(1, 12) if d.scheduled(n)}
+    assert views == {1: None, 2: (0, 0, 10, 10), 4: None, 5: (5, 0, 10, 10), 7: None,
+                     8: (0, 0, 10, 10), 10: None, 11: (5, 0, 10, 10)}
+    plain = FusedDetector(None, _Model(), 3, threaded=False)
+    assert [n for n in range(1, 12) if plain.scheduled(n)] == [1, 4, 7, 10]
+    assert plain.view(4) is None
 
 
 # ------------------------------------------------------------------ through the run

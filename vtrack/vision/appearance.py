@@ -2,7 +2,8 @@
 by how they look, standing or moving (Ge et al. 2021, "YOLOX: Exceeding YOLO Series in
 2021", arXiv 2107.08430).
 
-One pass (`AppearanceModel.detect`) on the whole frame:
+One pass (`AppearanceModel.detect`) on the whole frame, or on one window of it (a tile,
+`tiles`: the same model sees the vehicles of the window magnified):
 1. letterbox: resize keeping the aspect ratio to the model's input side S (read from the
    model), pad with grey 114 at the right and bottom (YOLOX's own preprocessing: BGR,
    0-255, no mean or std);
@@ -15,12 +16,15 @@ One pass (`AppearanceModel.detect`) on the whole frame:
 5. riders: a person box that overlaps a motorcycle's or bicycle's is that road user's rider
    and widens its box; every other person box is dropped (a pedestrian is not a vehicle).
 
-Boxes come back in the frame's pixels with a score and a class index into VEHICLE_CLASSES.
+Boxes come back in the frame's pixels with a score and a class index into VEHICLE_CLASSES;
+a window's boxes cut by its edges inside the frame are dropped (the tiles overlap: the
+vehicle is whole in a neighbour, or in the whole-frame pass).
 """
 
 from __future__ import annotations
 
 import hashlib
+import math
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -40,6 +44,9 @@ COCO_CLASSES = 80
 PERSON = 0
 STRIDES = (8, 16, 32)
 PAD_GREY = 114
+TILE_ZOOM = 1.75     # tiles magnify the whole-frame pass at least this much
+TILE_OVERLAP = 0.15  # tiles overlap by this share of their size (a far vehicle is whole in one)
+CUT_MODEL_PX = 3.0   # a window's box within this many model pixels of an inner edge is cut
 
 SHIPPED = "yolox_nano.onnx"
 SHIPPED_SHA256 = "695e750a5d5754bb5a8d5325643b59282191a7e7a564e435a415fd3c578eab14"
@@ -49,12 +56,15 @@ SHIPPED_SHA256 = "695e750a5d5754bb5a8d5325643b59282191a7e7a564e435a415fd3c578eab
 class AppearanceBoxes:
     """Road users found by appearance in one frame: boxes (K, 4) x, y, w, h in the frame's
     pixels, scores (K,) in 0..1, classes (K,) indices into VEHICLE_CLASSES; `scale`: the
-    model's input pixels per frame pixel of the pass (the letterbox's r)."""
+    model's input pixels per frame pixel of the pass (the letterbox's r); `window`: the
+    part of the frame the pass looked at."""
 
     boxes: np.ndarray
     scores: np.ndarray
     classes: np.ndarray
     scale: float = 1.0
+    window: tuple[int, int, int, int] | None = None   # the pass's window; None: whole frame
+    whole: float = 1.0   # the scale of a pass over the whole frame (= scale without a window)
 
     def __len__(self) -> int:
         return len(self.scores)
@@ -62,7 +72,47 @@ class AppearanceBoxes:
     def take(self, keep: np.ndarray) -> AppearanceBoxes:
         """The boxes where `keep` (K,) holds."""
         return AppearanceBoxes(self.boxes[keep], self.scores[keep], self.classes[keep],
-                               self.scale)
+                               self.scale, self.window, self.whole)
+
+
+Window = tuple[int, int, int, int]   # x, y, w, h in a frame's pixels
+
+
+def tiles(width: int, height: int, side: int) -> list[Window]:
+    """The fewest windows of a grid over a width x height frame, overlapping by
+    TILE_OVERLAP, in which a side x side model sees the vehicles at least TILE_ZOOM times
+    as large as in the whole frame (the far, small vehicles it misses there), in reading
+    order (top row first: the far band of a view down a road)."""
+    whole = min(side / width, side / height)
+    for n in range(2, 17):
+        best = None
+        for cols in range(1, n + 1):
+            if n % cols:
+                continue
+            rows = n // cols
+            tw = min(width, math.ceil(width / (cols - (cols - 1) * TILE_OVERLAP)))
+            th = min(height, math.ceil(height / (rows - (rows - 1) * TILE_OVERLAP)))
+            zoom = min(side / tw, side / th) / whole
+            if zoom >= TILE_ZOOM and (best is None or zoom > best[0]):
+                best = (zoom, cols, rows, tw, th)
+        if best is not None:
+            _, cols, rows, tw, th = best
+            xs = np.linspace(0, width - tw, cols).round().astype(int)
+            ys = np.linspace(0, height - th, rows).round().astype(int)
+            return [(int(x), int(y), tw, th) for y in ys for x in xs]
+    return []
+
+
+def cut(boxes: np.ndarray, window: Window, width: int, height: int, margin: float
+        ) -> np.ndarray:
+    """(K,) whether each box (K, 4), in frame pixels, reaches within `margin` of an edge of
+    `window` that is not the frame's own edge (the window cut its vehicle)."""
+    x, y, w, h = window
+    left = (x > 0) & (boxes[:, 0] <= x + margin)
+    top = (y > 0) & (boxes[:, 1] <= y + margin)
+    right = (x + w < width) & (boxes[:, 0] + boxes[:, 2] >= x + w - margin)
+    bottom = (y + h < height) & (boxes[:, 1] + boxes[:, 3] >= y + h - margin)
+    return left | top | right | bottom
 
 
 def shipped_model() -> Path:
@@ -254,13 +304,21 @@ class AppearanceModel:
         self.side = side
         self.min_score, self.nms_iou, self.cross_iou = min_score, nms_iou, cross_iou
 
-    def detect(self, image: np.ndarray) -> AppearanceBoxes:
-        """The road users in the frame `image` (BGR uint8), in its pixels."""
-        blob, r = letterbox(image, self.side)
+    def detect(self, image: np.ndarray, window: Window | None = None) -> AppearanceBoxes:
+        """The road users in the frame `image` (BGR uint8), or in its `window` (those the
+        window cuts dropped), in the frame's pixels."""
+        x, y = (0, 0) if window is None else window[:2]
+        crop = image if window is None else image[y:y + window[3], x:x + window[2]]
+        blob, r = letterbox(crop, self.side)
         boxes, scores, coco = decode(self.run(blob), self.cells, self.strides,
                                      self.min_score)
         boxes /= r
+        boxes[:, :2] += (x, y)
         keep = suppress(boxes, scores, coco, self.nms_iou, self.cross_iou)
         found = with_riders(boxes[keep], scores[keep], coco[keep])
-        found.scale = r
+        found.scale, found.window = r, window
+        found.whole = min(self.side / image.shape[0], self.side / image.shape[1])
+        if window is not None:
+            found = found.take(~cut(found.boxes, window, image.shape[1], image.shape[0],
+                                    CUT_MODEL_PX / r))
         return found

@@ -97,6 +97,11 @@ class DetectorConfig:
                                         "frame of a video slower than 1 / this; between "
                                         "passes the boxes of vehicles that stand are "
                                         "held)")
+    appearance_tiles: bool = _f(False, "hybrid: half-way between two whole-frame passes "
+                                      "the model looks at one tile of the frame in turn "
+                                      "(the fewest overlapping tiles that magnify it 1.75 "
+                                      "times), for the far vehicles the whole frame shows "
+                                      "too small; false: whole-frame passes only")
     appearance_score: float = _f(0.3, "smallest appearance score (objectness x class) "
                                       "kept")
     appearance_alone_score: float = _f(0.4, "hybrid: smallest appearance score of a box no "

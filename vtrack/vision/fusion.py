@@ -29,6 +29,12 @@ merges and pieces on the frames between. A carrier whose size has changed by mor
 `CARRIER_CHANGE` since the pass (another vehicle merged into the blob, the vehicle left it)
 drops its riders and the blobs are motion detections again until the next pass. A box with
 no carrier (a standing vehicle) is held while no blob links to it.
+
+Passes look at the whole frame or at one tile of it (`renew`). The whole frame is in
+charge of the vehicles it sees well enough (SMALL_MODEL_PX), a tile of the far ones the
+whole frame shows too small: a tile's pass gives only such boxes and renews only such
+riders inside it, and a whole-frame pass keeps the riders a finer pass found that it shows
+too small and has no box of (their vehicles ride on until their tile's next pass).
 """
 
 from __future__ import annotations
@@ -46,6 +52,7 @@ LINK_SHARE = 0.5
 COVER_SHARE = 0.5
 SMALL_MODEL_PX = 24.0  # a box smaller than this on a side, in model pixels, is placed loosely
 CARRIER_CHANGE = 1.25  # largest ratio of a carrier's width or height to those at the pass
+FINER = 1.2  # a whole-frame pass within this factor of a rider's pass's scale looks as finely
 
 
 @dataclass
@@ -54,7 +61,8 @@ class Fused:
     where no blob measured it), provenance (K,), scores (K,) (1 for motion-only blobs) and
     classes (K,) (index into appearance.VEHICLE_CLASSES, -1 unknown); for each row of an
     appearance box, the union of the blobs it explained (its carrier; NaN: none) (K, 4),
-    and that carrier as it was at the appearance pass (`first`, K, 4)."""
+    that carrier as it was at the appearance pass (`first`, K, 4), and the pass's scale
+    (model pixels per frame pixel, K; NaN for motion rows)."""
 
     boxes: np.ndarray
     areas: np.ndarray
@@ -63,17 +71,26 @@ class Fused:
     cls: np.ndarray
     carrier: np.ndarray
     first: np.ndarray
+    scale: np.ndarray
+
+    def take(self, keep: np.ndarray) -> Fused:
+        """The rows where `keep` holds (a mask or indices)."""
+        return Fused(self.boxes[keep], self.areas[keep], self.source[keep], self.score[keep],
+                     self.cls[keep], self.carrier[keep], self.first[keep], self.scale[keep])
 
     def riders(self) -> Fused:
         """The appearance rows (those that ride on to the next frame, `follow`)."""
-        keep = self.source != MOTION
-        return Fused(self.boxes[keep], self.areas[keep], self.source[keep], self.score[keep],
-                     self.cls[keep], self.carrier[keep], self.first[keep])
+        return self.take(self.source != MOTION)
+
+    def motion(self) -> tuple[np.ndarray, np.ndarray]:
+        """The motion rows' boxes and areas."""
+        rows = self.source == MOTION
+        return self.boxes[rows], self.areas[rows]
 
     @staticmethod
     def empty() -> Fused:
         return Fused(np.zeros((0, 4)), np.zeros(0), np.zeros(0, int), np.zeros(0),
-                     np.zeros(0, int), np.zeros((0, 4)), np.zeros((0, 4)))
+                     np.zeros(0, int), np.zeros((0, 4)), np.zeros((0, 4)), np.zeros(0))
 
 
 def relative(boxes: np.ndarray, carriers: np.ndarray) -> np.ndarray:
@@ -139,19 +156,21 @@ def fuse(blobs: np.ndarray, areas: np.ndarray, app: AppearanceBoxes, alone_score
             boxes[row], box_areas[row] = blobs[held[0]], areas[held[0]]
     return _joined(blobs[motion], areas[motion], Fused(
         boxes, box_areas, np.where(both[a], BOTH, APPEARANCE).astype(int), app.scores[a],
-        app.classes[a].astype(int), carriers, carriers.copy()))
+        app.classes[a].astype(int), carriers, carriers.copy(), np.full(len(a), app.scale)))
 
 
-def _joined(blobs: np.ndarray, areas: np.ndarray, app: Fused) -> Fused:
-    """Motion rows (the blobs) followed by the appearance rows `app`."""
+def _joined(blobs: np.ndarray, areas: np.ndarray, *app: Fused) -> Fused:
+    """Motion rows (the blobs) followed by the appearance rows of each of `app`."""
     n = len(blobs)
-    return Fused(np.concatenate([blobs.reshape(-1, 4), app.boxes]).reshape(-1, 4),
-                 np.concatenate([areas, app.areas]),
-                 np.concatenate([np.full(n, MOTION), app.source]).astype(int),
-                 np.concatenate([np.ones(n), app.score]),
-                 np.concatenate([np.full(n, -1), app.cls]).astype(int),
-                 np.concatenate([np.full((n, 4), np.nan), app.carrier]),
-                 np.concatenate([np.full((n, 4), np.nan), app.first]))
+    cat = lambda name: [getattr(f, name) for f in app]   # noqa: E731
+    return Fused(np.concatenate([blobs.reshape(-1, 4), *cat("boxes")]).reshape(-1, 4),
+                 np.concatenate([areas, *cat("areas")]),
+                 np.concatenate([np.full(n, MOTION), *cat("source")]).astype(int),
+                 np.concatenate([np.ones(n), *cat("score")]),
+                 np.concatenate([np.full(n, -1), *cat("cls")]).astype(int),
+                 np.concatenate([np.full((n, 4), np.nan), *cat("carrier")]),
+                 np.concatenate([np.full((n, 4), np.nan), *cat("first")]),
+                 np.concatenate([np.full(n, np.nan), *cat("scale")]))
 
 
 def follow(riders: Fused, blobs: np.ndarray, areas: np.ndarray) -> Fused:
@@ -182,4 +201,44 @@ def follow(riders: Fused, blobs: np.ndarray, areas: np.ndarray) -> Fused:
     k = np.flatnonzero(keep)
     return _joined(blobs[~taken], areas[~taken], Fused(
         boxes[k], np.prod(boxes[k, 2:], axis=1), riders.source[k], riders.score[k],
-        riders.cls[k], carriers[k], riders.first[k]))
+        riders.cls[k], carriers[k], riders.first[k], riders.scale[k]))
+
+
+def too_small(boxes: np.ndarray, scale: float) -> np.ndarray:
+    """(K,) whether boxes (K, 4) are under SMALL_MODEL_PX on a side at `scale` (model
+    pixels per frame pixel): too small for a pass at that scale to place."""
+    return boxes[:, 2:].min(axis=1) * scale < SMALL_MODEL_PX
+
+
+def refreshed(riders: Fused, app: AppearanceBoxes) -> np.ndarray:
+    """(K,) whether the pass `app` looks again at each rider (Fused.riders). The whole
+    frame's pass looks at the riders it has a box of, sees well enough (SMALL_MODEL_PX) or
+    sees as finely as the pass that found them; a tile's pass at the riders wholly inside
+    it that the whole frame shows too small (the far vehicles: the tiles' own). The others
+    ride on."""
+    if app.window is None:
+        seen = links(riders.boxes, app.boxes).any(axis=1)
+        return seen | ~too_small(riders.boxes, app.scale) | (riders.scale <= app.scale * FINER)
+    x, y, w, h = app.window
+    b = riders.boxes
+    inside = (b[:, 0] >= x) & (b[:, 1] >= y) & (b[:, 0] + b[:, 2] <= x + w) \
+        & (b[:, 1] + b[:, 3] <= y + h)
+    return inside & too_small(b, app.whole)
+
+
+def renew(riders: Fused, blobs: np.ndarray, areas: np.ndarray, app: AppearanceBoxes,
+          alone_score: float = 0.0) -> Fused:
+    """The detections of a frame with an appearance pass `app` (the whole frame or a
+    tile): the riders the pass looks at again (`refreshed`) give way to its boxes (`fuse`);
+    the others ride on (`follow`), and the pass's boxes that link to them are dropped (the
+    rider was measured more finely). A tile's pass gives only the boxes the whole frame
+    shows too small: the nearer vehicles are the whole frame's."""
+    if app.window is not None:
+        app = app.take(too_small(app.boxes, app.whole))
+    kept = follow(riders.take(~refreshed(riders, app)), blobs, areas)
+    if len(kept.boxes) > np.count_nonzero(kept.source == MOTION):
+        held = kept.riders().boxes
+        app = app.take(~links(held, app.boxes).any(axis=0))
+    free, free_areas = kept.motion()
+    new = fuse(free, free_areas, app, alone_score)
+    return _joined(*new.motion(), new.riders(), kept.riders())

@@ -8,7 +8,8 @@ video (every frame for `appearance`, and for a video slower than 1 / appearance_
 It is asked for frame n when the frame is read (`request`), before the tracker reaches it,
 and its boxes are taken when the frame's blobs are located (`locate`): reading never waits
 for it, and the results do not depend on the threads' timing (the schedule depends on the
-frame's number alone).
+frame's number alone). With `appearance_tiles` a pass half-way between two of them looks
+at one tile of the frame in turn, for the far vehicles (appearance.tiles, fusion.renew).
 
 Between two passes the appearance boxes ride on the blobs they explained, and those of
 standing vehicles (no blob) are held where nothing moves (fusion.follow): every frame is
@@ -25,9 +26,9 @@ from typing import Any
 import numpy as np
 
 from vtrack.boxes import centre
-from vtrack.vision.appearance import AppearanceModel
+from vtrack.vision.appearance import AppearanceModel, Window, tiles
 from vtrack.vision.detect import Detections, DetectorConfig, Foreground, MotionDetector
-from vtrack.vision.fusion import Fused, follow, fuse
+from vtrack.vision.fusion import Fused, follow, renew
 
 class FusedDetector:
     """MOG2 blobs and appearance boxes fused, behind the interface of MotionDetector (the
@@ -35,15 +36,17 @@ class FusedDetector:
     order, before that frame is located)."""
 
     def __init__(self, motion: MotionDetector, model: AppearanceModel, every: int,
-                 motion_blobs: bool = True, threaded: bool = True, alone_score: float = 0.0
-                 ) -> None:
+                 motion_blobs: bool = True, threaded: bool = True, alone_score: float = 0.0,
+                 windows: list[Window] | None = None) -> None:
         """`motion_blobs` False: appearance alone (kind "appearance"); `threaded` False:
         each pass runs when its frame is located, in the caller's thread (--profile);
-        `alone_score`: fusion.fuse's."""
+        `alone_score`: fusion.fuse's; `windows`: the tiles looked at in turn half-way
+        between two whole-frame passes (none: whole-frame passes only)."""
         self.motion = motion
         self.alone_score = alone_score
         self.model = model
         self.every = max(1, every)
+        self.windows = list(windows or [])
         self.motion_blobs = motion_blobs
         self._pool = (ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtrack-appearance")
                       if threaded else None)
@@ -58,15 +61,33 @@ class FusedDetector:
 
     def scheduled(self, number: int) -> bool:
         """Whether frame `number` (1-based, in reading order) gets an appearance pass."""
-        return (number - 1) % self.every == 0
+        return (number - 1) % self.every == 0 or self._tile_pass(number) is not None
+
+    def _tile_pass(self, number: int) -> int | None:
+        """The index of the tile pass of frame `number`, if it has one: half-way between
+        two whole-frame passes (on every other pass where every frame has one)."""
+        if not self.windows:
+            return None
+        if self.every == 1:
+            return (number - 1) // 2 if number % 2 == 0 else None
+        phase = (number - 1) % self.every
+        return (number - 1) // self.every if phase == self.every // 2 else None
+
+    def view(self, number: int) -> Window | None:
+        """The window the pass of scheduled frame `number` looks at: a tile, in turn, half-way
+        between the whole-frame passes; None: the whole frame."""
+        k = self._tile_pass(number)
+        return None if k is None else self.windows[k % len(self.windows)]
 
     def request(self, image: np.ndarray) -> None:
         """The next frame's full-resolution image, as it is read: its pass starts now if the
         schedule picks it."""
         self._requested += 1
-        job: Future | np.ndarray | None = None
+        job: Future | tuple[np.ndarray, Window | None] | None = None
         if self.scheduled(self._requested):
-            job = image if self._pool is None else self._pool.submit(self.model.detect, image)
+            window = self.view(self._requested)
+            job = ((image, window) if self._pool is None
+                   else self._pool.submit(self.model.detect, image, window))
         self._pending.append(job)
 
     def detect(self, image: np.ndarray, predicted: np.ndarray | None = None) -> Detections:
@@ -81,9 +102,9 @@ class FusedDetector:
             dets = Detections.empty(dets.motion)
         job = self._pending.popleft() if self._pending else None
         if job is not None:
-            app = job.result() if isinstance(job, Future) else self.model.detect(job)
+            app = job.result() if isinstance(job, Future) else self.model.detect(*job)
             app = app.take(self.motion.in_roi(centre(app.boxes)))   # the user's ROI only
-            f = fuse(dets.boxes, dets.areas, app, self.alone_score)
+            f = renew(self._riders, dets.boxes, dets.areas, app, self.alone_score)
         else:   # between passes: the boxes ride on their blobs or stand
             f = follow(self._riders, dets.boxes, dets.areas)
         self._riders = f.riders()
@@ -111,5 +132,7 @@ def make_detector(cfg: DetectorConfig, width: int, height: int, fps: float = 25.
     model = AppearanceModel(cfg.appearance_model or None, min_score=cfg.appearance_score)
     every = 1 if cfg.kind == "appearance" else max(1, round(cfg.appearance_seconds * fps))
     hybrid = cfg.kind == "hybrid"
+    windows = tiles(width, height, model.side) if hybrid and cfg.appearance_tiles else []
     return FusedDetector(motion, model, every, motion_blobs=hybrid, threaded=threaded,
-                         alone_score=cfg.appearance_alone_score if hybrid else 0.0)
+                         alone_score=cfg.appearance_alone_score if hybrid else 0.0,
+                         windows=windows)
