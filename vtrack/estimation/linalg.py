@@ -34,7 +34,8 @@ def symmetrize(P: np.ndarray) -> np.ndarray:
 
 
 def cholesky(P: np.ndarray, what: str = "covariance") -> np.ndarray:
-    """Lower Cholesky factor of a (stack of) SPD matrix; a clear error if it is not SPD."""
+    """Lower Cholesky factor of a (stack of) SPD matrix; a clear error if it is not SPD (any
+    matrix of the stack)."""
     if not np.all(np.isfinite(P)):
         raise EstimationError(f"{what} has non-finite entries")
     try:

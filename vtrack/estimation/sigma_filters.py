@@ -1,7 +1,8 @@
 """Sigma-point filters: UKF and CKF share one step and differ only in their SigmaPointRule;
 the iterated posterior linearisation filter (IPLF) iterates that update; the square-root UKF
 and seed 002's cube-root variant share one square-root step and differ only in the root.
-Missing measurement cells are NaN (GaussianFilter.update).
+Missing measurement cells are NaN (GaussianFilter.update). UKF, CKF and IPLF take a stack
+of runs (a leading axis, GaussianFilter); the square-root filters step one track.
 """
 
 from __future__ import annotations
@@ -38,9 +39,19 @@ def weighted_mean(Y: np.ndarray, Wm: np.ndarray, ref: np.ndarray,
                   residual: Callable[[np.ndarray, np.ndarray], np.ndarray]
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Sigma-point mean taken relative to a reference, ybar = ref + sum Wm_i r(Y_i, ref), and the
-    deviations r(Y_i, ybar). With wrapped residuals this averages angles across +-pi (SEEDS 1.4)."""
-    mean = ref + Wm @ residual(Y, ref)
-    return mean, residual(Y, mean)
+    deviations r(Y_i, ybar). With wrapped residuals this averages angles across +-pi (SEEDS 1.4).
+    Y (..., N, d), ref (..., d)."""
+    mean = ref + Wm @ residual(Y, ref[..., None, :])
+    return mean, residual(Y, mean[..., None, :])
+
+
+def _T(a: np.ndarray) -> np.ndarray:
+    return np.swapaxes(a, -1, -2)
+
+
+def _inputs_of_points(u: np.ndarray | None) -> np.ndarray | None:
+    """The input u (..., p) of a track or stack, shaped to broadcast over its sigma points."""
+    return None if u is None else np.asarray(u, dtype=float)[..., None, :]
 
 
 class SigmaPointKalmanFilter(GaussianFilter):
@@ -57,10 +68,10 @@ class SigmaPointKalmanFilter(GaussianFilter):
 
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
         X = self.rule.points(self.x, cholesky(self.P, "state covariance"))
-        Xp = self.motion.f(X, dt, u)
+        Xp = self.motion.f(X, dt, _inputs_of_points(u))
         ref = self.motion.f(self.x, dt, u)
         self.x, dX = weighted_mean(Xp, self.rule.Wm, ref, self.motion.residual)
-        self.P = symmetrize((dX.T * self.rule.Wc) @ dX + self.motion.Q(dt))
+        self.P = symmetrize((_T(dX) * self.rule.Wc) @ dX + self.motion.Q(dt))
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
         ybar, Pxy, Pyy = sigma_moments(self.rule, self.motion, meas, self.x, self.P)
@@ -68,12 +79,12 @@ class SigmaPointKalmanFilter(GaussianFilter):
         L = cholesky(S, "innovation covariance S")
         # K = Pxy S^-1 through the factor. numpy's solve, not scipy's solve_triangular: the
         # latter can take milliseconds per tiny call under a multi-threaded OpenBLAS.
-        K = np.linalg.solve(L.T, np.linalg.solve(L, Pxy.T)).T
+        K = _T(np.linalg.solve(_T(L), np.linalg.solve(L, _T(Pxy))))
         nu = meas.residual(z, ybar)
-        self.x = self.x + K @ nu
-        self.P = symmetrize(self.P - K @ S @ K.T)
-        w = np.linalg.solve(L, nu)
-        return Innovation(nu=nu, S=S, K=K, nis=np.asarray(w @ w))
+        self.x = self.x + (K @ nu[..., None])[..., 0]
+        self.P = symmetrize(self.P - K @ S @ _T(K))
+        w = np.linalg.solve(L, nu[..., None])[..., 0]
+        return Innovation(nu=nu, S=S, K=K, nis=np.sum(w * w, axis=-1))
 
 
 def sigma_moments(rule: SigmaPointRule, motion: MotionModel, meas: MeasurementModel,
@@ -83,8 +94,8 @@ def sigma_moments(rule: SigmaPointRule, motion: MotionModel, meas: MeasurementMo
     Pyy = sum Wc (Y_i - ybar)(Y_i - ybar)' (residuals wrapped for angles)."""
     X = rule.points(m, cholesky(P, "covariance of the sigma points"))
     ybar, dY = weighted_mean(meas.h(X), rule.Wm, meas.h(m), meas.residual)
-    dX = motion.residual(X, m)
-    return ybar, (dX.T * rule.Wc) @ dY, (dY.T * rule.Wc) @ dY
+    dX = motion.residual(X, m[..., None, :])
+    return ybar, (_T(dX) * rule.Wc) @ dY, (_T(dY) * rule.Wc) @ dY
 
 
 def statistical_linear_regression(rule: SigmaPointRule, motion: MotionModel,
@@ -99,11 +110,13 @@ def statistical_linear_regression(rule: SigmaPointRule, motion: MotionModel,
     weight (the unscented rule with kappa < 0) can make it indefinite, and then its negative
     eigenvalues are set to zero."""
     ybar, Pxy, Pyy = sigma_moments(rule, motion, meas, m, P)
-    A = np.linalg.solve(P, Pxy).T
-    Omega = symmetrize(Pyy - A @ P @ A.T)
+    A = _T(np.linalg.solve(P, Pxy))
+    Omega = symmetrize(Pyy - A @ P @ _T(A))
     d, U = np.linalg.eigh(Omega)
-    if d.min() < 0.0:
-        Omega = (U * np.maximum(d, 0.0)) @ U.T
+    negative = d.min(axis=-1) < 0.0
+    if negative.any():
+        clipped = (U * np.maximum(d, 0.0)[..., None, :]) @ _T(U)
+        Omega = np.where(negative[..., None, None], clipped, Omega)
     return A, ybar, Omega
 
 
@@ -142,7 +155,7 @@ class IteratedPosteriorLinearisationFilter(SigmaPointKalmanFilter):
         super().__init__(motion, measurement, x0, P0, rule, "iplf")
         self.max_iterations, self.tolerance, self.damped = iteration_options(
             max_iterations, tolerance, damped)
-        self.iterations = 0
+        self.iterations: int | np.ndarray = 0
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
         def linearise(m: np.ndarray, P: np.ndarray) -> Linearisation:
@@ -194,6 +207,7 @@ class SquareRootUKF(GaussianFilter):
     """
 
     repair = False
+    batched = False
 
     def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
                  P0: np.ndarray, rule: SigmaPointRule, root: int = 2, kind: str = "srukf") -> None:
@@ -245,7 +259,7 @@ class SquareRootUKF(GaussianFilter):
             return tria(U * np.sqrt(np.maximum(d, floor)))
 
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
-        Xp = self.motion.f(self._points(self.x), dt, u)
+        Xp = self.motion.f(self._points(self.x), dt, _inputs_of_points(u))
         self.x, dX = weighted_mean(Xp, self.rule.Wm, self.motion.f(self.x, dt, u),
                                    self.motion.residual)
         self.S = self._factor(dX, self.root.of(self.motion.Q(dt), "process noise Q"))

@@ -347,7 +347,7 @@ def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KI
                              measurements=np.vstack([np.full((1, 3), np.nan), zs[0]]))
     for kind in kinds:
         run = monte_carlo(kind, lambda r, kind=kind: build_filter(kind, cfg, xhat0s[r]),
-                          np.array(zs), 1.0, record=COUNTERS)
+                          np.array(zs), 1.0, record=COUNTERS, batch=False)
         acc = per[kind]
         for r in range(runs):
             if run.failed[r]:
