@@ -1,7 +1,8 @@
 """Wall time of the seed experiments with the Monte Carlo runs stepped together (the harness,
 vtrack.estimation.montecarlo) against one run at a time (runs_one_at_a_time: the per-run
-loop, each run a stack of one), measured in the same process; and the cost of one update per
-run of each filter kind, a stack of runs against a loop over one-track filters.
+loop, each run a one-track filter of the same code), measured in the same process; and the
+cost of one update per run of each filter kind, a stack of runs against a loop over one-track
+filters.
 
     .venv/bin/python scripts/bench_experiments.py [--names bearings-2 ...] [--runs 100]
         [--loop-runs N] [--seed 0] [--no-default] [--kinds ekf,iekf,...]
@@ -101,12 +102,11 @@ def update_cost(kind: str, runs: int, steps: int) -> tuple[float, float]:
         return spent
 
     with np.errstate(all="ignore"):
-        stack = make_filter(kind, motion, meas, np.tile(x0, (runs, 1)), P0)
-        if stack.batched:
-            t_stack = stepped([stack], lambda i, k: Z[:, k])
-        else:                               # no stack for this kind: it loops itself
-            t_stack = float("nan")
         ones = [make_filter(kind, motion, meas, x0, P0) for _ in range(runs)]
+        t_stack = float("nan")              # a kind without stacks (batched = False)
+        if ones[0].batched:
+            stack = make_filter(kind, motion, meas, np.tile(x0, (runs, 1)), P0)
+            t_stack = stepped([stack], lambda i, k: Z[:, k])
         t_loop = stepped(ones, lambda i, k: Z[i, k])
     n = runs * Z.shape[1]
     return t_stack / n, t_loop / n

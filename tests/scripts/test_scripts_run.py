@@ -222,3 +222,18 @@ def test_ablation(tmp_path):
     for name, row in rows.items():
         assert f"{data[name]['mota_mean']:7.3f}" in row
         assert 0.5 < data[name]["mota_mean"] <= 1.0
+
+
+def test_bench_experiments():
+    """Two runs of the ankf experiment stacked and one run at a time (the loop measured at
+    one run and scaled), and the per-update cost of two kinds: a line each with its figures."""
+    out = _run("scripts/bench_experiments.py", "--names", "ankf", "--runs", "2",
+               "--loop-runs", "1", "--no-default", "--kinds", "iekf,srukf",
+               "--update-runs", "2", "--steps", "3")
+    iekf = next(l for l in out.splitlines() if l.startswith("update iekf:"))
+    assert "stacked" in iekf and "ratio" in iekf and all(v > 0 for v in _numbers(iekf))
+    assert "no stack (batched = False)" in out
+    exp = next(l for l in out.splitlines() if l.startswith("experiment ankf runs 2:"))
+    assert "at 1 runs, scaled" in exp and "ratio" in exp
+    assert re.search(r"all 1 experiments at 2 runs: stacked [0-9.]+ s, one run at a time "
+                     r"[0-9.]+ s", out), out

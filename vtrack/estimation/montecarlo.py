@@ -104,8 +104,9 @@ def each_run(filt: GaussianFilter, value: np.ndarray, ndim: int = 1) -> np.ndarr
 
 
 def _per_run(value: object, batch: tuple[int, ...]) -> np.ndarray:
-    """A recorded diagnostic as float array; one number stands for every run of a stack."""
-    value = np.asarray(value, dtype=float)
+    """A recorded diagnostic as a float array of its own (a copy: filters update their state
+    in place); one number stands for every run of a stack."""
+    value = np.array(value, dtype=float)
     return np.broadcast_to(value, batch) if value.ndim == 0 else value
 
 
@@ -142,7 +143,7 @@ class MonteCarloRun:
 
 Factory = Callable[[object], GaussianFilter]
 """Builds the filter of some runs: called with an index array of runs (the filter then holds
-that stack, x (len, n)), or with one run's int index (per-run harness)."""
+that stack, x (len, n)), or with one run's int index (a one-track filter)."""
 
 
 _one_at_a_time = False
@@ -150,7 +151,7 @@ _one_at_a_time = False
 
 @contextlib.contextmanager
 def runs_one_at_a_time() -> Iterator[None]:
-    """Within this context monte_carlo steps every run alone (a stack of one run): the
+    """Within this context monte_carlo steps every run alone (a one-track filter): the
     per-run loop that stepping the runs together replaces, for benchmarks and checks."""
     global _one_at_a_time
     saved, _one_at_a_time = _one_at_a_time, True
@@ -180,8 +181,8 @@ def monte_carlo(kind: str, factory: Factory, Z: np.ndarray, dt: float | np.ndarr
     batch (the default): the runs that miss the same cells (missing_patterns) are stepped
     together, `factory(runs)` building one filter for the index array `runs`; that is the
     same code as one track, with a leading run axis. Kinds that cannot (`batched` False, or
-    a factory that does not build a stack) run one run at a time, `factory(array([r]))`;
-    batch=False: one run at a time, `factory(r)`. A run whose filter cannot be built or
+    a factory that does not build a stack) and batch=False run one run at a time, each
+    filter built for one track, `factory(r)`. A run whose filter cannot be built or
     fails is marked failed and left NaN; the others are unaffected (paired comparisons stay
     paired): when a stack fails, its runs are stepped again one at a time to find the
     failing ones. Under runs_one_at_a_time() every run is stepped alone."""
@@ -194,7 +195,7 @@ def monte_carlo(kind: str, factory: Factory, Z: np.ndarray, dt: float | np.ndarr
         if stacked is None:
             stacked = []
             for r in runs:
-                out, n = _run_one(factory, int(r), Z, dt, U, record, before_step, batch)
+                out, n = _run_one(factory, int(r), Z, dt, U, record, before_step)
                 stacked.append(out)
                 sizes.update([] if n is None else [n])
         for r, out in zip(runs, stacked):
@@ -248,22 +249,19 @@ def _run_stack(factory: Factory, runs: np.ndarray, Z: np.ndarray, dt: float | np
 
 def _run_one(factory: Factory, r: int, Z: np.ndarray, dt: float | np.ndarray,
              U: np.ndarray | None, record: Mapping[str, Recorder] | None,
-             before_step: Callable[[GaussianFilter, int], None] | None, batch: bool
+             before_step: Callable[[GaussianFilter, int], None] | None
              ) -> tuple[FilterOutput | None, int | None]:
-    """Run r alone (a stack of one when batch and the kind can), and the state size of its
+    """Run r alone, its filter built for one track (`factory(r)`), and the state size of its
     filter; (None, ...) if it could not be built or failed."""
     try:
-        filt = factory(np.array([r])) if batch else factory(r)
+        filt = factory(r)
     except _FAILURES:
         return None, None
-    one = filt.x.ndim > 1
-    sel = [r] if one else r
     try:
-        out = run_sequence(filt, Z[sel], dt, None if U is None else U[sel], record,
-                           before_step)
+        out = run_sequence(filt, Z[r], dt, None if U is None else U[r], record, before_step)
     except _FAILURES:
         return None, filt.x.shape[-1]
-    return (_run_of(out, 0) if one else out), filt.x.shape[-1]
+    return out, filt.x.shape[-1]
 
 
 def _run_of(out: FilterOutput, i: int) -> FilterOutput:
