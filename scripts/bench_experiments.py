@@ -13,8 +13,9 @@ time. The per-run loop is slow (bearings-2 takes minutes per 10 runs); --loop-ru
 measures it at N runs instead and prints the time scaled by runs / N, marked "scaled"
 (the per-run loop costs the same per run). Updates: the bearings-2 scenario (two bearing
 sensors, Wiener velocity, the toolbox's turning path) over --steps steps of --update-runs
-runs; the figure is the mean wall time of update() per run, and the ratio loop / stacked.
-On a machine shared with other work, repeat and look at the spread.
+runs; the figure is the mean CPU time of update() per run, and the ratio loop / stacked.
+The wall time counts the waits on a machine shared with other work; the CPU time of the
+process does not (it still varies with what shares the cores).
 """
 
 from __future__ import annotations
@@ -33,17 +34,18 @@ UPDATE_KINDS = ("ekf", "iekf", "ukf", "ckf", "iplf", "srukf", "crukf", "ankf1", 
                 "fuzzy-r", "fuzzy-q", "siim-ekf")
 
 
-def _timed(fn, *args) -> float:
-    t0 = time.perf_counter()
+def _timed(fn, *args) -> tuple[float, float]:
+    """(wall, CPU) seconds of fn(*args), its output swallowed."""
+    t0, c0 = time.perf_counter(), time.process_time()
     with contextlib.redirect_stdout(io.StringIO()):
         fn(*args)
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def experiment_times(name: str, runs: int, seed: int, loop_runs: int | None
-                     ) -> tuple[float, float, int]:
-    """(stacked wall time at `runs`, per-run loop wall time at min(runs, loop_runs), the
-    number of runs of the loop measurement)."""
+                     ) -> tuple[tuple[float, float], tuple[float, float], int]:
+    """((wall, CPU) stacked at `runs`, (wall, CPU) of the per-run loop at min(runs,
+    loop_runs), the number of runs of the loop measurement)."""
     run = load_all()[name].run
     stacked = _timed(run, runs, seed)
     n_loop = runs if loop_runs is None else min(runs, loop_runs)
@@ -55,22 +57,23 @@ def experiment_times(name: str, runs: int, seed: int, loop_runs: int | None
 def bench_experiments(names: list[str], runs: int, seed: int, loop_runs: int | None,
                       default: bool) -> None:
     experiments = load_all()
-    totals: dict[str, list[float]] = {}
+    totals = np.zeros(4)                    # stacked wall, CPU; loop wall, CPU at `runs`
     for name in names:
         sizes = ([experiments[name].default_runs] if default else []) + [runs]
         for size in dict.fromkeys(sizes):
             stacked, loop, n_loop = experiment_times(name, size, seed, loop_runs)
-            loop_full = loop * size / n_loop
-            note = "" if n_loop == size else f" ({loop:.1f} s at {n_loop} runs, scaled)"
-            print(f"experiment {name} runs {size}: stacked {stacked:.1f} s, one run at a time "
-                  f"{loop_full:.1f} s{note}, ratio {loop_full / stacked:.1f}", flush=True)
+            scale = size / n_loop
+            note = "" if n_loop == size else f" (measured at {n_loop} runs, scaled)"
+            print(f"experiment {name} runs {size}: stacked {stacked[0]:.1f} s wall "
+                  f"{stacked[1]:.1f} s CPU, one run at a time {scale * loop[0]:.1f} s wall "
+                  f"{scale * loop[1]:.1f} s CPU{note}, CPU ratio "
+                  f"{scale * loop[1] / stacked[1]:.1f}", flush=True)
             if size == runs:
-                totals.setdefault("stacked", []).append(stacked)
-                totals.setdefault("loop", []).append(loop_full)
-    if totals:
-        print(f"all {len(names)} experiments at {runs} runs: stacked "
-              f"{sum(totals['stacked']):.1f} s, one run at a time {sum(totals['loop']):.1f} s",
-              flush=True)
+                totals += [stacked[0], stacked[1], scale * loop[0], scale * loop[1]]
+    if names:
+        print(f"all {len(names)} experiments at {runs} runs: stacked {totals[0]:.1f} s wall "
+              f"{totals[1]:.1f} s CPU, one run at a time {totals[2]:.1f} s wall {totals[3]:.1f} "
+              f"s CPU", flush=True)
 
 
 def _bearings_case(runs: int, steps: int):
@@ -84,7 +87,7 @@ def _bearings_case(runs: int, steps: int):
 
 
 def update_cost(kind: str, runs: int, steps: int) -> tuple[float, float]:
-    """Mean wall time of one update per run [s]: all runs as one stack, and a loop over one
+    """Mean CPU time of one update per run [s]: all runs as one stack, and a loop over one
     filter per run (each predicts and updates alone)."""
     from vtrack.filter_kinds import make_filter
 
@@ -96,9 +99,9 @@ def update_cost(kind: str, runs: int, steps: int) -> tuple[float, float]:
         for k in range(Z.shape[1]):
             for i, f in enumerate(filters):
                 f.predict(0.01)
-                t0 = time.perf_counter()
+                t0 = time.process_time()
                 f.update(z_of(i, k))
-                spent += time.perf_counter() - t0
+                spent += time.process_time() - t0
         return spent
 
     with np.errstate(all="ignore"):

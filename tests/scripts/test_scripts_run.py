@@ -230,10 +230,10 @@ def test_bench_experiments():
     out = _run("scripts/bench_experiments.py", "--names", "ankf", "--runs", "2",
                "--loop-runs", "1", "--no-default", "--kinds", "iekf,srukf",
                "--update-runs", "2", "--steps", "3")
-    iekf = next(l for l in out.splitlines() if l.startswith("update iekf:"))
-    assert "stacked" in iekf and "ratio" in iekf and all(v > 0 for v in _numbers(iekf))
-    assert "no stack (batched = False)" in out
+    for kind in ("iekf", "srukf"):
+        line = next(l for l in out.splitlines() if l.startswith(f"update {kind}:"))
+        assert "stacked" in line and "ratio" in line and all(v > 0 for v in _numbers(line))
     exp = next(l for l in out.splitlines() if l.startswith("experiment ankf runs 2:"))
-    assert "at 1 runs, scaled" in exp and "ratio" in exp
-    assert re.search(r"all 1 experiments at 2 runs: stacked [0-9.]+ s, one run at a time "
-                     r"[0-9.]+ s", out), out
+    assert "measured at 1 runs, scaled" in exp and "CPU ratio" in exp
+    assert re.search(r"all 1 experiments at 2 runs: stacked [0-9.]+ s wall [0-9.]+ s CPU, one "
+                     r"run at a time [0-9.]+ s wall [0-9.]+ s CPU", out), out
