@@ -1,10 +1,12 @@
 """Filters as objects with one small surface: predict(dt, u), update(z), x, P.
 
 This module holds the base class, the EKF (which is the linear KF on linear models) and the
-iterated EKF (its iterations in vtrack.estimation.iterated); the sigma-point filters are in vtrack.estimation.sigma_filters and every kind
-is built by name through vtrack.estimation.registry. Missing measurement cells are NaN.
+iterated EKF (its iterations in vtrack.estimation.iterated); the sigma-point filters are in
+vtrack.estimation.sigma_filters and every kind is built by name through
+vtrack.estimation.registry. Missing measurement cells are NaN.
 
-The EKF's prediction and update are written once. Filters that adapt their noise (the
+A filter holds one track (x (n,), P (n, n)) or a stack of R runs (x (R, n), P (R, n, n)),
+stepped by the same code (GaussianFilter). The EKF's prediction and update are written once. Filters that adapt their noise (the
 seed-paper kinds in vtrack.adaptive) supply Q and R through two hooks,
 `process_noise(dt)` and `measurement_noise(meas)`, instead of copying the steps.
 """
