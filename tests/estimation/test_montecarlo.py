@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from vtrack.estimation.bounds import chi2_band
-from vtrack.estimation.models import Bearings, WienerVelocity
+from vtrack.estimation.models import Bearings, WienerVelocity, position_measurement
 from vtrack.estimation.montecarlo import (
     StepError,
     missing_patterns,
@@ -160,3 +160,17 @@ def test_runs_one_at_a_time_gives_the_stacked_numbers():
     with runs_one_at_a_time():
         alone = monte_carlo("iplf", _stack_of("iplf"), Z, 0.01)
     np.testing.assert_allclose(stacked.x, alone.x, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["iekf", "iplf"])
+def test_a_stack_with_a_constant_measurement_jacobian(kind):
+    """A linear measurement model gives one H for the whole stack; the iterations still keep
+    one linearisation per run (equal to each run alone)."""
+    rng = np.random.default_rng(4)
+    Z = rng.normal(size=(3, 20, 2))
+    motion, meas = WienerVelocity(0.1), position_measurement(4, 0.5)
+    x0s = X0 + 0.1 * np.arange(3)[:, None]
+    stack = monte_carlo(kind, lambda r: make_filter(kind, motion, meas, x0s[r], P0), Z, 0.1)
+    for r in range(3):
+        alone = run_sequence(make_filter(kind, motion, meas, x0s[r], P0), Z[r], 0.1)
+        np.testing.assert_allclose(stack.x[r], alone.x, rtol=1e-9, atol=1e-12)

@@ -240,6 +240,20 @@ def iterated_update(motion: MotionModel, meas: MeasurementModel, x_prior: np.nda
     return it.m, it.P, it.accepted.as_innovation(), iterations
 
 
+def _per_iterate(linearise: Callable[[np.ndarray, np.ndarray], Linearisation]
+                 ) -> Callable[[np.ndarray, np.ndarray], Linearisation]:
+    """`linearise` with its (A, y, Omega) given for each iterate of the stack (a model with
+    a constant Jacobian returns one A for all)."""
+    def stacked(m: np.ndarray, P: np.ndarray) -> Linearisation:
+        A, y, Omega = linearise(m, P)
+        k = len(m)
+        return (np.broadcast_to(A, (k,) + np.shape(A)[-2:]),
+                np.broadcast_to(y, (k,) + np.shape(y)[-1:]),
+                None if Omega is None else np.broadcast_to(Omega, (k,) + np.shape(Omega)[-2:]))
+
+    return stacked
+
+
 class _Iterations:
     """The state of the iterations of a stack of runs (iterated_update): the prior and its
     factor, the iterates m and covariances P, each run's damping mu and its growth, the
@@ -251,7 +265,8 @@ class _Iterations:
                  uses_covariance: bool) -> None:
         runs, n = x_prior.shape
         m = np.shape(R)[-1]
-        self.motion, self.meas, self.linearise, self.damped = motion, meas, linearise, damped
+        self.motion, self.meas, self.damped = motion, meas, damped
+        self.linearise = _per_iterate(linearise)
         self.x_prior, self.P_prior, self.z = x_prior, P_prior, z
         self.R = np.broadcast_to(R, (runs, m, m))
         self.Lp = cholesky(P_prior, "predicted covariance")

@@ -222,7 +222,7 @@ class AugmentedNoiseFilter(GaussianFilter):
     def __init__(self, kind: str, motion: MotionModel, measurement: MeasurementModel,
                  x0: np.ndarray, P0: np.ndarray, W: np.ndarray, V: np.ndarray,
                  **ut: float) -> None:
-        self.n = len(x0)
+        self.n = np.shape(x0)[-1]
         self.W = np.asarray(W, dtype=float)
         self.V = np.asarray(V, dtype=float)
         self.kind = kind
@@ -350,6 +350,7 @@ def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KI
         zs.append(z)
         xhat0s.append(filt_rng.multivariate_normal(np.array(cfg.x0), np.diag(cfg.P0))
                       if cfg.xhat0 is None else np.array(cfg.xhat0))
+    xhat0s = np.array(xhat0s)            # indexed by a stack of runs in the harness
     fields = ("eps_x", "eps_theta", "pi", "sq", "nees", "fallbacks", "repairs",
               "first_repair", "ok")
     per: dict[str, dict[str, list]] = {k: {f: [] for f in fields + ("failed",)} for k in kinds}
