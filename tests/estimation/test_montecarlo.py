@@ -1,17 +1,20 @@
 """The Monte Carlo harness (vtrack.estimation.montecarlo): one filter over a sequence, over a
-Monte Carlo set with failing runs, and the NIS test of one run."""
+Monte Carlo set with failing runs, the NIS test of one run, and the runs stepped together as
+one stack of the core filter (equal to each run alone)."""
 
 import numpy as np
 import pytest
 
 from vtrack.estimation.bounds import chi2_band
-from vtrack.estimation.models import Bearings, WienerVelocity
+from vtrack.estimation.models import Bearings, WienerVelocity, position_measurement
 from vtrack.estimation.montecarlo import (
     StepError,
+    missing_patterns,
     monte_carlo,
     nis_consistency,
     run_rmse,
     run_sequence,
+    runs_one_at_a_time,
     squared_error,
 )
 from vtrack.filter_kinds import make_filter
@@ -87,3 +90,87 @@ def test_nis_consistency():
     assert nis_consistency(2 * nis, dof)["nis_consistent"] is False
     none = nis_consistency(np.full(3, np.nan), np.zeros(3, dtype=int))
     assert none["updates"] == 0 and none["nis_per_dof"] is None
+
+
+# ------------------------------------------------------------- runs stepped together
+
+STACKED_KINDS = ["ekf", "iekf", "ukf", "ckf", "iplf", "srukf", "crukf", "ankf1", "ankf2",
+                 "fuzzy-r", "fuzzy-q", "siim-ekf"]
+
+
+def _runs(R=5, K=40):
+    """R runs of _log's geometry with their own noise; run 1 misses cells the others
+    measure (its own missing pattern: a stack of its own)."""
+    Z = np.stack([_log(K, seed=s) for s in range(R)])
+    Z[1, 20, 1] = np.nan
+    return Z
+
+
+@pytest.mark.parametrize("kind", STACKED_KINDS)
+def test_a_stack_of_runs_equals_each_run_alone(kind):
+    """The same filter code with a leading run axis: every run of a stack has the numbers of
+    its one-track filter (to rounding), its NIS and iteration counts included; the harness
+    groups the runs by their missing cells."""
+    Z = _runs()
+    x0s = X0 + 0.01 * np.arange(len(Z))[:, None]
+    motion, meas = WienerVelocity(0.1), Bearings(SENSORS, 0.05)
+    stack = monte_carlo(kind, lambda r: make_filter(kind, motion, meas, x0s[r], P0), Z, 0.01)
+    assert not stack.failed.any()
+    for r in range(len(Z)):
+        alone = run_sequence(make_filter(kind, motion, meas, x0s[r], P0), Z[r], 0.01)
+        np.testing.assert_allclose(stack.x[r], alone.x, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(stack.P[r], alone.P, rtol=1e-9, atol=1e-14)
+        np.testing.assert_allclose(stack.nis[r], alone.nis, rtol=1e-9)
+        np.testing.assert_array_equal(stack.nis_dof[r], alone.nis_dof)
+    if kind in ("iekf", "iplf"):
+        f = make_filter(kind, motion, meas, np.tile(X0, (len(Z), 1)), P0)
+        f.step(0.01, Z[:, 0])
+        assert f.iterations.shape == (len(Z),) and np.all(f.iterations >= 2)
+
+
+def _stack_of(kind):
+    """A factory of the harness: the filter of the runs `r` (an index array: a stack; an
+    int: one track), all from X0."""
+    x0s = np.tile(X0, (5, 1))
+    return lambda r: make_filter(kind, WienerVelocity(0.1), Bearings(SENSORS, 0.05), x0s[r], P0)
+
+
+def test_the_missing_patterns_group_the_runs():
+    Z = _runs(R=4)
+    groups = missing_patterns(Z)
+    assert [g.tolist() for g in groups] == [[0, 2, 3], [1]]
+
+
+def test_a_failing_run_of_a_stack_fails_alone():
+    """An infinite cell in one run fails the stack; the runs are then stepped one at a time:
+    only that run is marked failed and the others have their own numbers."""
+    Z = _runs(R=4)
+    Z[2, 11, 0] = np.inf
+    run = monte_carlo("iekf", _stack_of("iekf"), Z, 0.01)
+    assert run.failed.tolist() == [False, False, True, False]
+    assert np.isnan(run.x[2]).all()
+    for r in (0, 3):
+        np.testing.assert_allclose(run.x[r], run_sequence(_filter("iekf"), Z[r], 0.01).x,
+                                   rtol=1e-9, atol=1e-12)
+
+
+def test_runs_one_at_a_time_gives_the_stacked_numbers():
+    Z = _runs(R=3)
+    stacked = monte_carlo("iplf", _stack_of("iplf"), Z, 0.01)
+    with runs_one_at_a_time():
+        alone = monte_carlo("iplf", _stack_of("iplf"), Z, 0.01)
+    np.testing.assert_allclose(stacked.x, alone.x, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["iekf", "iplf"])
+def test_a_stack_with_a_constant_measurement_jacobian(kind):
+    """A linear measurement model gives one H for the whole stack; the iterations still keep
+    one linearisation per run (equal to each run alone)."""
+    rng = np.random.default_rng(4)
+    Z = rng.normal(size=(3, 20, 2))
+    motion, meas = WienerVelocity(0.1), position_measurement(4, 0.5)
+    x0s = X0 + 0.1 * np.arange(3)[:, None]
+    stack = monte_carlo(kind, lambda r: make_filter(kind, motion, meas, x0s[r], P0), Z, 0.1)
+    for r in range(3):
+        alone = run_sequence(make_filter(kind, motion, meas, x0s[r], P0), Z[r], 0.1)
+        np.testing.assert_allclose(stack.x[r], alone.x, rtol=1e-9, atol=1e-12)

@@ -3,7 +3,7 @@
 alpha = 1, beta = 0 and kappa <= -1 give a negative centre weight Wc0 (-1/3 for the toolbox's
 kappa = 3 - n, -1 and -7 for kappa = -2, -3.5), so every predict and every update performs
 a rank-1 Cholesky DOWNDATE of the QR factor; the test checks that those downdates really
-ran (spy on cholupdate) and that none fell back to the full-covariance path.
+ran (spy on cholupdate_each) and that none fell back to the full-covariance path.
 Compared: posterior mean and covariance S S' after every step of the seed-000 turning run,
 absolute tolerance 1e-10 (observed ~1e-14).
 """
@@ -22,13 +22,13 @@ def test_srukf_equals_ukf_with_negative_centre_weight(kappa, monkeypatch):
     opts = dict(alpha=1.0, beta=0.0, kappa=kappa)
 
     calls = {"down": 0, "up": 0}
-    real = filters_mod.cholupdate
+    real = filters_mod.cholupdate_each
 
     def spy(L, v, sign=1.0):
         calls["down" if sign < 0 else "up"] += 1
         return real(L, v, sign)
 
-    monkeypatch.setattr(filters_mod, "cholupdate", spy)
+    monkeypatch.setattr(filters_mod, "cholupdate_each", spy)
     x_ukf, P_ukf, _ = S.run("ukf", zs, **opts)
     x_sr, P_sr, sr = S.run("srukf", zs, **opts)
 

@@ -222,3 +222,18 @@ def test_ablation(tmp_path):
     for name, row in rows.items():
         assert f"{data[name]['mota_mean']:7.3f}" in row
         assert 0.5 < data[name]["mota_mean"] <= 1.0
+
+
+def test_bench_experiments():
+    """Two runs of the ankf experiment stacked and one run at a time (the loop measured at
+    one run and scaled), and the per-update cost of two kinds: a line each with its figures."""
+    out = _run("scripts/bench_experiments.py", "--names", "ankf", "--runs", "2",
+               "--loop-runs", "1", "--no-default", "--kinds", "iekf,srukf",
+               "--update-runs", "2", "--steps", "3")
+    for kind in ("iekf", "srukf"):
+        line = next(l for l in out.splitlines() if l.startswith(f"update {kind}:"))
+        assert "stacked" in line and "ratio" in line and all(v > 0 for v in _numbers(line))
+    exp = next(l for l in out.splitlines() if l.startswith("experiment ankf runs 2:"))
+    assert "measured at 1 runs, scaled" in exp and "CPU ratio" in exp
+    assert re.search(r"all 1 experiments at 2 runs: stacked [0-9.]+ s wall [0-9.]+ s CPU, one "
+                     r"run at a time [0-9.]+ s wall [0-9.]+ s CPU", out), out

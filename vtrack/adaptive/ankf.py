@@ -98,6 +98,11 @@ def _diag_embed(d: np.ndarray) -> np.ndarray:
     return d[..., :, None] * np.eye(d.shape[-1])
 
 
+def _per_run(M: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """A copy of the matrix M for each run of the state x (..., n) (M itself for one track)."""
+    return np.broadcast_to(M, x.shape[:-1] + M.shape).copy()
+
+
 def ankf1_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray,
                  R_nom: np.ndarray, window: InnovationCovarianceWindow, r_floor: float, adapt_r: bool,
                  adapt_q: bool, R_hat: np.ndarray | None
@@ -180,13 +185,14 @@ class InnovationAdaptiveEKF(ExtendedKalmanFilter):
                  P0: np.ndarray, window: int = 20, r_floor: float = 0.01,
                  adapt_r: bool = True, adapt_q: bool = False) -> None:
         super().__init__(motion, measurement, x0, P0)
-        self.window = InnovationCovarianceWindow(int_option("window", window, 1), measurement.m)
+        self.window = InnovationCovarianceWindow(int_option("window", window, 1),
+                                                 self.x.shape[:-1] + (measurement.m,))
         self.r_floor = float_option("r_floor", r_floor, 0.0)
         self.adapt_r = bool_option("adapt_r", adapt_r)
         self.adapt_q = bool_option("adapt_q", adapt_q)
         self.R_hat: np.ndarray | None = None
         self.Q_hat: np.ndarray | None = None
-        self.R_used: np.ndarray = measurement.R.copy()
+        self.R_used: np.ndarray = _per_run(measurement.R, self.x)
         self.adapted = False
 
     def process_noise(self, dt: float) -> np.ndarray:
@@ -197,7 +203,7 @@ class InnovationAdaptiveEKF(ExtendedKalmanFilter):
         """The latest R_hat on the rows of `meas` (R_nom before the first estimate): what a
         step with only some cells present is updated with."""
         if self.adapt_r and self.R_hat is not None:
-            return np.diag(self.R_hat[meas.row_indices()])
+            return _diag_embed(self.R_hat[..., meas.row_indices()])
         return meas.R
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
@@ -243,7 +249,8 @@ class FadingAdaptiveEKF(ExtendedKalmanFilter):
         multiple_factors (bool, default false) one lambda_R per measurement row
         fade_prior       (bool, default false) fade Pprop + Q instead of Pprop alone
 
-    Diagnostics after each update: `lambda_P` (float), `lambda_R` ((m,) or None), `R_used`,
+    Diagnostics after each update: `lambda_P` (float; (R,) for a stack of runs), `lambda_R`
+    ((..., m) or None), `R_used`,
     `adapted`.
     """
 
@@ -254,7 +261,8 @@ class FadingAdaptiveEKF(ExtendedKalmanFilter):
                  ratio_min: float = 0.01, ratio_max: float = 100.0,
                  multiple_factors: bool = False, fade_prior: bool = False) -> None:
         super().__init__(motion, measurement, x0, P0)
-        self.window = InnovationCovarianceWindow(int_option("window", window, 1), measurement.m)
+        self.window = InnovationCovarianceWindow(int_option("window", window, 1),
+                                                 self.x.shape[:-1] + (measurement.m,))
         self.lambda_max = float_option("lambda_max", lambda_max, 1.0, strict=False)
         self.ratio_min = float_option("ratio_min", ratio_min, 0.0)
         self.ratio_max = float_option("ratio_max", ratio_max, self.ratio_min, strict=False)
@@ -262,9 +270,9 @@ class FadingAdaptiveEKF(ExtendedKalmanFilter):
         self.fade_prior = bool_option("fade_prior", fade_prior)
         self._Pprop: np.ndarray | None = None
         self._Q: np.ndarray | None = None
-        self.lambda_P = 1.0
+        self.lambda_P: float | np.ndarray = 1.0
         self.lambda_R: np.ndarray | None = None
-        self.R_used: np.ndarray = measurement.R.copy()
+        self.R_used: np.ndarray = _per_run(measurement.R, self.x)
         self.adapted = False
 
     def process_noise(self, dt: float) -> np.ndarray:
@@ -283,7 +291,7 @@ class FadingAdaptiveEKF(ExtendedKalmanFilter):
         some cells present is updated with)."""
         if self.lambda_R is None:
             return meas.R
-        return scale_noise(meas.R, self.lambda_R[meas.row_indices()])
+        return scale_noise(meas.R, self.lambda_R[..., meas.row_indices()])
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
         if meas.m < self.measurement.m:           # partial vector: last lambda_R, no fading
@@ -299,7 +307,7 @@ class FadingAdaptiveEKF(ExtendedKalmanFilter):
             self.x, self.P, info, self.R_used, lam_P, self.lambda_R = ankf2_update(
                 self.x, Pprop, Q, nu, H, meas.R, self.window, lam_max, self.ratio_min,
                 self.ratio_max, self.multiple_factors, self.fade_prior, self.lambda_R)
-            self.lambda_P = float(lam_P)
+            self.lambda_P = lam_P if np.ndim(lam_P) else float(lam_P)
             self.adapted = self.window.full
         self._Pprop = None     # fading applies once per prediction
         return info

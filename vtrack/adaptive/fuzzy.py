@@ -138,16 +138,17 @@ def fuzzy_adjustment(S: np.ndarray, Sr: np.ndarray, ref: np.ndarray, rules: int 
 
 def _state_axes(motion: MotionModel, meas: MeasurementModel, x0: np.ndarray) -> np.ndarray:
     """For each state component, the measurement axis it feeds most strongly (through
-    |H| sum_p |F|^p), or -1 if none: how a per-axis Q scale is spread over the state."""
+    |H| sum_p |F|^p), or -1 if none: how a per-axis Q scale is spread over the state.
+    (n,), or (..., n) for a stack of states x0 (..., n)."""
     F = np.abs(np.asarray(motion.F(x0, 1.0, None), dtype=float))
     H = np.abs(np.asarray(meas.H(x0), dtype=float))
     reach = np.eye(motion.n)
-    G = np.zeros_like(H)
+    G = np.zeros(np.broadcast_shapes(H.shape, x0.shape[:-1] + (1, 1)))
     for _ in range(motion.n):
-        G += H @ reach
+        G = G + H @ reach
         reach = reach @ F
-    axes = np.argmax(G, axis=0)
-    return np.where(G.max(axis=0) > 0.0, axes, -1)
+    axes = np.argmax(G, axis=-2)
+    return np.where(G.max(axis=-2) > 0.0, axes, -1)
 
 
 class FuzzyAdaptiveKF(ExtendedKalmanFilter):
@@ -160,6 +161,7 @@ class FuzzyAdaptiveKF(ExtendedKalmanFilter):
     where Q = D Q_nom D, D = diag(sqrt(s_axis(i))) scales each state by the factor of the
     measurement axis it feeds (position and velocity of the same axis share s_j).
     R stays diagonal in its adapted entries; off-diagonal entries of R_nom are kept.
+    For a stack of runs R and q_scale carry the leading run axis.
     """
 
     def __init__(self, motion: MotionModel, measurement: MeasurementModel, x0: np.ndarray,
@@ -174,11 +176,13 @@ class FuzzyAdaptiveKF(ExtendedKalmanFilter):
         self.rules = int_option("rules", rules, 1)
         fuzzy_adjustment(np.ones(1), np.ones(1), np.ones(1), self.rules)  # validate `rules`
         self.floor, self.ceiling = float_option("floor", floor), float_option("ceiling", ceiling)
+        runs = self.x.shape[:-1]
         self.R_nom = np.array(measurement.R, dtype=float)
-        self.R = self.R_nom.copy()
+        self.R = np.broadcast_to(self.R_nom, runs + self.R_nom.shape).copy()
         self.ref = np.diag(self.R_nom).copy()
-        self.q_scale = np.ones(measurement.m)
-        self.window = InnovationVarianceWindow(measurement.m, int_option("window", window, 1))
+        self.q_scale = np.ones(runs + (measurement.m,))
+        self.window = InnovationVarianceWindow(measurement.m, int_option("window", window, 1),
+                                               runs)
         self._axes = _state_axes(motion, measurement, self.x)
 
     def process_noise(self, dt: float) -> np.ndarray:
@@ -186,15 +190,16 @@ class FuzzyAdaptiveKF(ExtendedKalmanFilter):
         Q = self.motion.Q(dt)
         if self.target == "R":
             return Q
-        s = np.where(self._axes >= 0, self.q_scale[np.maximum(self._axes, 0)],
-                     np.exp(np.mean(np.log(self.q_scale))))
+        s = np.where(self._axes >= 0,
+                     np.take_along_axis(self.q_scale, np.maximum(self._axes, 0), axis=-1),
+                     np.exp(np.mean(np.log(self.q_scale), axis=-1, keepdims=True)))
         d = np.sqrt(s)
-        return d[:, None] * Q * d[None, :]
+        return d[..., :, None] * Q * d[..., None, :]
 
     def measurement_noise(self, meas: MeasurementModel) -> np.ndarray:
         """The adapted R on the rows of `meas`."""
         rows = meas.row_indices()
-        return self.R[np.ix_(rows, rows)]
+        return self.R[..., rows, :][..., rows]
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
         info = super()._update(meas, z)
@@ -207,16 +212,18 @@ class FuzzyAdaptiveKF(ExtendedKalmanFilter):
         if not ready.any():
             return
         rows = rows[ready]
-        S = np.diag(info.S)[ready]
+        S = np.diagonal(info.S, axis1=-2, axis2=-1)[..., ready]
         Sr = self.window.second_moment(rows)
         action = fuzzy_adjustment(S, Sr, self.ref[rows], self.rules)
         if self.target == "R":
             nom = self.R_nom[rows, rows]
-            self.R[rows, rows] = np.clip(self.R[rows, rows] + self.step_size * nom * action,
-                                         self.floor * nom, self.ceiling * nom)
+            self.R[..., rows, rows] = np.clip(
+                self.R[..., rows, rows] + self.step_size * nom * action,
+                self.floor * nom, self.ceiling * nom)
         else:
-            self.q_scale[rows] = np.clip(self.q_scale[rows] * (1.0 + self.step_size * action),
-                                         self.floor, self.ceiling)
+            self.q_scale[..., rows] = np.clip(
+                self.q_scale[..., rows] * (1.0 + self.step_size * action),
+                self.floor, self.ceiling)
 
 
 _FUZZY_OPTIONS = ("window", "step", "rules", "floor", "ceiling")

@@ -46,19 +46,20 @@ class InnovationCovarianceWindow:
 
 class InnovationVarianceWindow:
     """Per-row ring buffers of the last `size` innovations of each of m rows;
-    `second_moment(rows)` is Sr_jj = mean nu_j^2 per row."""
+    `second_moment(rows)` is Sr_jj = mean nu_j^2 per row. With a batch shape (a stack of
+    filters that see the same rows) each filter has its own buffers."""
 
-    def __init__(self, m: int, size: int) -> None:
+    def __init__(self, m: int, size: int, batch: tuple[int, ...] = ()) -> None:
         if size < 1:
             raise ValueError(f"innovation window must be >= 1, got {size}")
         self.size = size
-        self.buf = np.zeros((m, size))
+        self.buf = np.zeros(batch + (m, size))
         self.count = np.zeros(m, dtype=int)
 
     def push(self, rows: np.ndarray, nu: np.ndarray) -> None:
-        """Store nu (one value per row in `rows`) in those rows' buffers."""
+        """Store nu (one value per row in `rows`, (..., len(rows))) in those rows' buffers."""
         slot = self.count[rows] % self.size
-        self.buf[rows, slot] = nu
+        self.buf[..., rows, slot] = nu
         self.count[rows] += 1
 
     def full(self, rows: np.ndarray) -> np.ndarray:
@@ -67,4 +68,4 @@ class InnovationVarianceWindow:
 
     def second_moment(self, rows: np.ndarray) -> np.ndarray:
         """Sr_jj = (1/N) sum nu_j^2 over each row's buffer."""
-        return np.mean(self.buf[rows] ** 2, axis=-1)
+        return np.mean(self.buf[..., rows, :] ** 2, axis=-1)

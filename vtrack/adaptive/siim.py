@@ -75,29 +75,34 @@ class SIIMExtendedKalmanFilter(ExtendedKalmanFilter):
         if not 0.0 <= self.gamma < 1.0:
             raise ValueError(f"siim-ekf gamma must be in [0, 1), got {gamma}")
         self.lo, self.hi = float(lo), float(hi)
-        self.q_scale = 1.0
-        self.r_scale = 1.0
-        self.alpha = 0.0
+        runs = self.x.shape[:-1]          # () for one track: the scales are then numbers
+        self.q_scale: float | np.ndarray = np.ones(runs) if runs else 1.0
+        self.r_scale: float | np.ndarray = np.ones(runs) if runs else 1.0
+        self.alpha: float | np.ndarray = np.zeros(runs) if runs else 0.0
 
     def process_noise(self, dt: float) -> np.ndarray:
         """The scaled process noise q_scale Q."""
-        return self.q_scale * self.motion.Q(dt)
+        return np.asarray(self.q_scale)[..., None, None] * self.motion.Q(dt)
 
     def measurement_noise(self, meas: MeasurementModel) -> np.ndarray:
         """The scaled measurement noise r_scale R."""
-        return self.r_scale * meas.R
+        return np.asarray(self.r_scale)[..., None, None] * meas.R
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
-        tr_prior = float(np.trace(self.P))
+        tr_prior = np.trace(self.P, axis1=-2, axis2=-1)
         info = super()._update(meas, z)
-        x1 = (tr_prior - float(np.trace(self.P))) / tr_prior if tr_prior > 0 else 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x1 = np.where(tr_prior > 0,
+                          (tr_prior - np.trace(self.P, axis1=-2, axis2=-1)) / tr_prior, 0.0)
         denom = np.maximum(np.abs(z), np.sqrt(np.diag(meas.R)))
-        x2 = float(np.mean(np.clip(info.nu / denom, -1.0, 1.0)))
-        self.alpha = float(siim_alpha(x1, x2))
-        self.q_scale = float(np.clip(self.q_scale * (1.0 - self.gamma * self.alpha),
-                                     self.lo, self.hi))
-        self.r_scale = float(np.clip(self.r_scale * (1.0 + self.gamma * self.alpha),
-                                     self.lo, self.hi))
+        x2 = np.mean(np.clip(info.nu / denom, -1.0, 1.0), axis=-1)
+        alpha = siim_alpha(x1, x2)
+        q_scale = np.clip(self.q_scale * (1.0 - self.gamma * alpha), self.lo, self.hi)
+        r_scale = np.clip(self.r_scale * (1.0 + self.gamma * alpha), self.lo, self.hi)
+        if np.ndim(alpha):
+            self.alpha, self.q_scale, self.r_scale = alpha, q_scale, r_scale
+        else:
+            self.alpha, self.q_scale, self.r_scale = float(alpha), float(q_scale), float(r_scale)
         return info
 
 

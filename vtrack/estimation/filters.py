@@ -1,10 +1,12 @@
 """Filters as objects with one small surface: predict(dt, u), update(z), x, P.
 
 This module holds the base class, the EKF (which is the linear KF on linear models) and the
-iterated EKF (its iterations in vtrack.estimation.iterated); the sigma-point filters are in vtrack.estimation.sigma_filters and every kind
-is built by name through vtrack.estimation.registry. Missing measurement cells are NaN.
+iterated EKF (its iterations in vtrack.estimation.iterated); the sigma-point filters are in
+vtrack.estimation.sigma_filters and every kind is built by name through
+vtrack.estimation.registry. Missing measurement cells are NaN.
 
-The EKF's prediction and update are written once. Filters that adapt their noise (the
+A filter holds one track (x (n,), P (n, n)) or a stack of R runs (x (R, n), P (R, n, n)),
+stepped by the same code (GaussianFilter). The EKF's prediction and update are written once. Filters that adapt their noise (the
 seed-paper kinds in vtrack.adaptive) supply Q and R through two hooks,
 `process_noise(dt)` and `measurement_noise(meas)`, instead of copying the steps.
 """
@@ -27,16 +29,23 @@ from vtrack.estimation.models import MeasurementModel, MotionModel
 
 
 class GaussianFilter:
-    """Base: holds the posterior (x, P) and routes present measurement cells to `_update`."""
+    """Base: holds the posterior (x, P) and routes present measurement cells to `_update`.
+
+    One track has x (n,), P (n, n). Built with a stack of initial states x0 (R, n) (P0 (n, n)
+    shared or (R, n, n)), the filter runs R tracks at once (the Monte Carlo runs of
+    vtrack.estimation.montecarlo): every step is the same code with a leading run axis, and
+    z is (R, m). Kinds that cannot do that set `batched = False`."""
 
     kind = "base"
+    batched = True
 
     def __init__(self, motion: MotionModel, measurement: MeasurementModel,
                  x0: np.ndarray, P0: np.ndarray) -> None:
         self.motion = motion
         self.measurement = measurement
         self.x = require_finite(x0, "initial state x0").copy()
-        self.P = symmetrize(require_finite(P0, "initial covariance P0"))
+        P0 = require_finite(P0, "initial covariance P0")
+        self.P = symmetrize(np.broadcast_to(P0, self.x.shape + self.x.shape[-1:]).copy())
         cholesky(self.P, "initial covariance P0")
         self.last: Innovation | None = None
 
@@ -47,14 +56,17 @@ class GaussianFilter:
         raise NotImplementedError
 
     def update(self, z: np.ndarray) -> Innovation | None:
-        """Update with the finite cells of z (NaN = missing); all missing = no update."""
+        """Update with the finite cells of z (NaN = missing); all missing = no update. The
+        runs of a stack z (R, m) must miss the same cells (the harness groups them so)."""
         z = np.asarray(z, dtype=float)
         if np.any(np.isinf(z)):
             raise EstimationError("measurement has infinite entries")
-        present = np.isfinite(z)
+        present = np.isfinite(z).reshape(-1, z.shape[-1])
+        if np.any(present != present[0]):
+            raise EstimationError("the runs of a batch miss different measurement cells")
         self.last = None
-        if present.any():
-            self.last = self._update(self.measurement.subset(present), z[present])
+        if present[0].any():
+            self.last = self._update(self.measurement.subset(present[0]), z[..., present[0]])
         return self.last
 
     def step(self, dt: float, z: np.ndarray, u: np.ndarray | None = None) -> Innovation | None:
@@ -115,6 +127,7 @@ class IteratedExtendedKalmanFilter(ExtendedKalmanFilter):
 
     Options: max_iterations (default 30), tolerance (default 1e-4: the last step below 1e-4
     posterior standard deviations), damped (default true; false: plain Gauss-Newton).
+    With a stack of runs `iterations` holds one count per run.
     """
 
     kind = "iekf"
@@ -125,7 +138,7 @@ class IteratedExtendedKalmanFilter(ExtendedKalmanFilter):
         super().__init__(motion, measurement, x0, P0)
         self.max_iterations, self.tolerance, self.damped = iteration_options(
             max_iterations, tolerance, damped)
-        self.iterations = 0
+        self.iterations: int | np.ndarray = 0
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
         def linearise(m: np.ndarray, P: np.ndarray) -> Linearisation:
@@ -133,5 +146,5 @@ class IteratedExtendedKalmanFilter(ExtendedKalmanFilter):
 
         self.x, self.P, info, self.iterations = iterated_update(
             self.motion, meas, self.x, self.P, z, self.measurement_noise(meas), linearise,
-            self.max_iterations, self.tolerance, self.damped)
+            self.max_iterations, self.tolerance, self.damped, uses_covariance=False)
         return info

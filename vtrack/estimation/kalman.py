@@ -2,7 +2,8 @@
 
 Every array may carry leading batch axes: x (..., n), P (..., n, n), z (..., m),
 H (..., m, n), R (..., m, m). The tracker steps all vehicles' filters with one call; the
-seed experiments call the same functions with no batch axis.
+seed experiments step all Monte Carlo runs of a case with one call (the filters of
+vtrack.estimation.filters holding a stack of runs), and `vtrack filter` one track.
 """
 
 from __future__ import annotations

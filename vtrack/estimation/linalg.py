@@ -34,7 +34,8 @@ def symmetrize(P: np.ndarray) -> np.ndarray:
 
 
 def cholesky(P: np.ndarray, what: str = "covariance") -> np.ndarray:
-    """Lower Cholesky factor of a (stack of) SPD matrix; a clear error if it is not SPD."""
+    """Lower Cholesky factor of a (stack of) SPD matrix; a clear error if it is not SPD (any
+    matrix of the stack)."""
     if not np.all(np.isfinite(P)):
         raise EstimationError(f"{what} has non-finite entries")
     try:
@@ -55,39 +56,53 @@ def require_finite(a: np.ndarray, what: str) -> np.ndarray:
 
 
 def tria(M: np.ndarray) -> np.ndarray:
-    """Lower-triangular S with S S^T = M M^T, from the QR of M^T, diag(S) >= 0 (SEEDS 1.5)."""
-    r = np.linalg.qr(M.T, mode="r")
-    S = r.T[:, : M.shape[0]]
-    signs = np.where(np.diag(S) < 0, -1.0, 1.0)
-    return S * signs
+    """Lower-triangular S with S S^T = M M^T, from the QR of M^T, diag(S) >= 0 (SEEDS 1.5);
+    over stacks M (..., n, k)."""
+    r = np.linalg.qr(np.swapaxes(M, -1, -2), mode="r")
+    S = np.swapaxes(r, -1, -2)[..., :, : M.shape[-2]]
+    signs = np.where(np.diagonal(S, axis1=-2, axis2=-1) < 0, -1.0, 1.0)
+    return S * signs[..., None, :]
 
 
 def cholupdate(L: np.ndarray, v: np.ndarray, sign: float = 1.0) -> np.ndarray:
     """Rank-1 update (sign=+1) or downdate (sign=-1) of a lower Cholesky factor.
 
     Returns L' with L' L'^T = L L^T + sign * v v^T (SEEDS 1.5). A downdate that would lose
-    positive definiteness raises DowndateError.
-    """
+    positive definiteness (of any factor of a stack) raises DowndateError."""
+    out, ok = cholupdate_each(L, v, sign)
+    if not np.all(ok):
+        raise DowndateError("Cholesky downdate lost positive definiteness")
+    return out
+
+
+def cholupdate_each(L: np.ndarray, v: np.ndarray, sign: float = 1.0
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """cholupdate over a stack of factors L (..., n, n) and vectors v (..., n): the updated
+    factors and, per factor, whether its update kept it positive definite (where not, its
+    factor is meaningless)."""
     L = np.array(L, dtype=float, copy=True)
     v = np.array(v, dtype=float, copy=True)
-    n = L.shape[0]
-    for k in range(n):
-        r2 = L[k, k] ** 2 + sign * v[k] ** 2
-        if r2 <= 0.0 or not np.isfinite(r2):
-            raise DowndateError("Cholesky downdate lost positive definiteness")
-        r = np.sqrt(r2)
-        c = r / L[k, k]
-        s = v[k] / L[k, k]
-        L[k, k] = r
-        if k + 1 < n:
-            L[k + 1 :, k] = (L[k + 1 :, k] + sign * s * v[k + 1 :]) / c
-            v[k + 1 :] = c * v[k + 1 :] - s * L[k + 1 :, k]
-    return L
+    n = L.shape[-1]
+    ok = np.ones(L.shape[:-2], dtype=bool)
+    with np.errstate(all="ignore"):         # a failed factor carries on as garbage
+        for k in range(n):
+            r2 = L[..., k, k] ** 2 + sign * v[..., k] ** 2
+            ok &= (r2 > 0.0) & np.isfinite(r2)
+            r = np.sqrt(r2)
+            c = r / L[..., k, k]
+            s = v[..., k] / L[..., k, k]
+            L[..., k, k] = r
+            if k + 1 < n:
+                L[..., k + 1:, k] = (L[..., k + 1:, k] + sign * s[..., None] * v[..., k + 1:]) \
+                    / c[..., None]
+                v[..., k + 1:] = c[..., None] * v[..., k + 1:] - s[..., None] * L[..., k + 1:, k]
+    return L, ok
 
 
 def spd_root(P: np.ndarray, power: float) -> np.ndarray:
-    """Principal power P^power = U diag(d^power) U^T of an SPD matrix (seed 002's cube root)."""
+    """Principal power P^power = U diag(d^power) U^T of an SPD matrix (seed 002's cube root);
+    over a stack, NotPositiveDefiniteError if any matrix is not SPD."""
     d, U = np.linalg.eigh(symmetrize(P))
     if d.min() <= 0:
         raise NotPositiveDefiniteError("matrix root of a matrix that is not positive definite")
-    return (U * d**power) @ U.T
+    return (U * (d**power)[..., None, :]) @ np.swapaxes(U, -1, -2)

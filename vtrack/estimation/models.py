@@ -16,6 +16,8 @@ from vtrack.estimation.linalg import wrap_angle
 
 def _residual(a: np.ndarray, b: np.ndarray, angles: tuple[int, ...]) -> np.ndarray:
     d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+    if angles and len(angles) == d.shape[-1]:       # every component an angle (bearings)
+        return wrap_angle(d)
     if angles:
         idx = list(angles)
         d[..., idx] = wrap_angle(d[..., idx])
@@ -164,10 +166,12 @@ class Unicycle(MotionModel):
         self.q = np.broadcast_to(np.asarray(q, dtype=float), (3,)).copy()
 
     @staticmethod
-    def _u(u: np.ndarray | None) -> tuple[float, float]:
+    def _u(u: np.ndarray | None) -> tuple[np.ndarray | float, np.ndarray | float]:
+        """(speed, turn rate): numbers, or one per run (...,) for a stack of inputs."""
         if u is None:
             return 0.0, 0.0
-        return float(u[0]), float(u[1])
+        u = np.asarray(u, dtype=float)
+        return u[..., 0], u[..., 1]
 
     def f(self, x: np.ndarray, dt: float, u: np.ndarray | None = None) -> np.ndarray:
         v, om = self._u(u)
@@ -181,10 +185,11 @@ class Unicycle(MotionModel):
 
     def F(self, x: np.ndarray, dt: float, u: np.ndarray | None = None) -> np.ndarray:
         v, om = self._u(u)
-        th = float(x[2]) + om * dt
-        return np.array(
-            [[1.0, 0.0, -v * dt * np.sin(th)], [0.0, 1.0, v * dt * np.cos(th)], [0.0, 0.0, 1.0]]
-        )
+        th = np.asarray(x, dtype=float)[..., 2] + om * dt
+        J = np.broadcast_to(np.eye(3), np.shape(th) + (3, 3)).copy()
+        J[..., 0, 2] = -v * dt * np.sin(th)
+        J[..., 1, 2] = v * dt * np.cos(th)
+        return J
 
     def Q(self, dt: float) -> np.ndarray:
         return np.diag(self.q * dt)
@@ -262,6 +267,15 @@ def pose_measurement(sigma: float | np.ndarray) -> LinearMeasurement:
     return LinearMeasurement(np.eye(3), _noise_cov(sigma, 3), angles=(2,))
 
 
+def _position_jacobian(d_dx: np.ndarray, d_dy: np.ndarray, n: int) -> np.ndarray:
+    """Jacobian rows (..., m, n) of a measurement of the position: d/dx, d/dy in columns 0
+    and 1, zeros elsewhere (a stack of states gives a stack of Jacobians)."""
+    J = np.zeros(d_dx.shape + (n,))
+    J[..., 0] = d_dx
+    J[..., 1] = d_dy
+    return J
+
+
 class Bearings(MeasurementModel):
     """One bearing per sensor, h_i = atan2(y - sy_i, x - sx_i) (seed 000 eq. 4, with atan2).
 
@@ -289,10 +303,7 @@ class Bearings(MeasurementModel):
     def H(self, x: np.ndarray) -> np.ndarray:
         dx, dy = self._d(x)
         r2 = dx**2 + dy**2
-        J = np.zeros((self.m, self.n))
-        J[:, 0] = -dy / r2
-        J[:, 1] = dx / r2
-        return J
+        return _position_jacobian(-dy / r2, dx / r2, self.n)
 
 
 class Ranges(MeasurementModel):
@@ -309,13 +320,11 @@ class Ranges(MeasurementModel):
         return np.hypot(x[..., None, 0] - self.sensors[:, 0], x[..., None, 1] - self.sensors[:, 1])
 
     def H(self, x: np.ndarray) -> np.ndarray:
-        dx = x[0] - self.sensors[:, 0]
-        dy = x[1] - self.sensors[:, 1]
+        x = np.asarray(x, dtype=float)
+        dx = x[..., None, 0] - self.sensors[:, 0]
+        dy = x[..., None, 1] - self.sensors[:, 1]
         r = np.hypot(dx, dy)
-        J = np.zeros((self.m, self.n))
-        J[:, 0] = dx / r
-        J[:, 1] = dy / r
-        return J
+        return _position_jacobian(dx / r, dy / r, self.n)
 
 
 @dataclass
@@ -339,7 +348,7 @@ class _Subset(MeasurementModel):
         return self.base.h(x)[..., self.rows]
 
     def H(self, x: np.ndarray) -> np.ndarray:
-        return self.base.H(x)[self.rows]
+        return self.base.H(x)[..., self.rows, :]
 
     def row_indices(self) -> np.ndarray:
         return np.asarray(self.rows)

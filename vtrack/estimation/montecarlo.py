@@ -1,16 +1,19 @@
 """The Monte Carlo harness (SEEDS 1.7, 7.3): filters over runs x steps, and their statistics.
 
-`run_sequence` steps one filter over one measurement sequence (a `vtrack filter` log, or one
-Monte Carlo run) and collects the posterior means, covariances and NIS; `monte_carlo` does it
-for every run of a Monte Carlo set, building each run's filter with a factory, and marks the
-runs whose filter failed. The functions below them turn those arrays into what the
+`run_sequence` steps one filter over one measurement sequence (a `vtrack filter` log) or a
+filter holding a stack of runs over theirs, and collects the posterior means, covariances and
+NIS; `monte_carlo` does it for every run of a Monte Carlo set: the runs that miss the same
+measurement cells are stepped together as one stack of the core filter (the same code as one
+track, with a leading run axis: numpy's batched solve, Cholesky and matmul instead of one
+small call per run), and the runs whose filter failed are marked. The functions below them turn those arrays into what the
 experiments report: RMSE over runs and steps and per run, NEES and ANEES with the chi-square
 band, NIS, and paired differences with standard errors (bounds.paired_difference).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import contextlib
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,33 +58,56 @@ def run_sequence(filt: GaussianFilter, z: np.ndarray, dt: float | np.ndarray,
     may change the filter before step k (e.g. a time-varying R); `record` reads diagnostics
     after each step.
 
+    A filter holding a stack of R runs (GaussianFilter) is stepped over z (R, K, m) and
+    u (R, K, p) the same way; every output then has the leading run axis (x (R, K, n), ...),
+    and a recorder returns one value per run (or one number for all).
+
     Any estimation failure (non-PD covariance, inf cell, overflow; with require_finite also
     a non-finite posterior) raises StepError naming the step."""
-    K = len(z)
-    n = filt.x.shape[0]
+    batch = filt.x.shape[:-1]
+    K = z.shape[-2]
+    n = filt.x.shape[-1]
     dts = np.broadcast_to(np.asarray(dt, dtype=float), (K,))
-    out = FilterOutput(x=np.empty((K, n)), P=np.empty((K, n, n)), nis=np.full(K, np.nan),
-                       nis_dof=np.zeros(K, dtype=int), x0=filt.x.copy(), P0=filt.P.copy())
+    out = FilterOutput(x=np.empty(batch + (K, n)), P=np.empty(batch + (K, n, n)),
+                       nis=np.full(batch + (K,), np.nan),
+                       nis_dof=np.zeros(batch + (K,), dtype=int), x0=filt.x.copy(),
+                       P0=filt.P.copy())
     values: dict[str, list] = {name: [] for name in (record or {})}
     with np.errstate(all="ignore"):  # warnings would break the CLI's one-line error contract
         for k in range(K):
             try:
                 if before_step is not None:
                     before_step(filt, k)
-                filt.predict(float(dts[k]), None if u is None else u[k])
-                info = filt.update(z[k])
+                filt.predict(float(dts[k]), None if u is None else u[..., k, :])
+                info = filt.update(z[..., k, :])
                 x, P = filt.x, filt.P
                 if require_finite and not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
                     raise EstimationError("the posterior mean or covariance is not finite")
             except (EstimationError, np.linalg.LinAlgError, ArithmeticError) as exc:
                 raise StepError(k, _cause(exc)) from exc
-            out.x[k], out.P[k] = x, P
+            out.x[..., k, :], out.P[..., k, :, :] = x, P
             if info is not None:
-                out.nis[k], out.nis_dof[k] = float(info.nis), len(info.nu)
+                out.nis[..., k], out.nis_dof[..., k] = info.nis, info.nu.shape[-1]
             for name, read in (record or {}).items():
-                values[name].append(read(filt))
-    out.series = {name: np.array(v, dtype=float) for name, v in values.items()}
+                values[name].append(_per_run(read(filt), batch))
+    out.series = {name: np.stack(v, axis=len(batch)) if v else np.empty(batch + (0,))
+                  for name, v in values.items()}
     return out
+
+
+def each_run(filt: GaussianFilter, value: np.ndarray, ndim: int = 1) -> np.ndarray:
+    """A recorder's diagnostic of `ndim` axes (a vector: ndim 1) with one row per run of the
+    filter's stack, broadcast if it is one value for all (e.g. the model's R before any
+    adaptation); unchanged for one track."""
+    value = np.asarray(value, dtype=float)
+    return np.broadcast_to(value, filt.x.shape[:-1] + value.shape[value.ndim - ndim:])
+
+
+def _per_run(value: object, batch: tuple[int, ...]) -> np.ndarray:
+    """A recorded diagnostic as a float array of its own (a copy: filters update their state
+    in place); one number stands for every run of a stack."""
+    value = np.array(value, dtype=float)
+    return np.broadcast_to(value, batch) if value.ndim == 0 else value
 
 
 def _cause(exc: BaseException) -> str:
@@ -115,26 +141,69 @@ class MonteCarloRun:
                 np.concatenate([self.P0[r][None], self.P[r]]))
 
 
-def monte_carlo(kind: str, factory: Callable[[int], GaussianFilter], Z: np.ndarray,
-                dt: float | np.ndarray, U: np.ndarray | None = None,
-                record: Mapping[str, Recorder] | None = None,
-                before_step: Callable[[GaussianFilter, int], None] | None = None
-                ) -> MonteCarloRun:
-    """Run the filter `factory(r)` over the measurements Z[r] (K, m) (inputs U[r]) of every
-    run r (run_sequence). A run whose filter cannot be built or fails is marked failed and
-    left NaN; the others are unaffected (paired comparisons stay paired)."""
-    outs: list[FilterOutput | None] = []
-    n = None
-    for r in range(len(Z)):
-        try:
-            filt = factory(r)
-            n = filt.x.shape[0]
-            outs.append(run_sequence(filt, Z[r], dt, None if U is None else U[r], record,
-                                     before_step))
-        except (EstimationError, np.linalg.LinAlgError, ArithmeticError):
-            outs.append(None)
-    if n is None:
+Factory = Callable[[object], GaussianFilter]
+"""Builds the filter of some runs: called with an index array of runs (the filter then holds
+that stack, x (len, n)), or with one run's int index (a one-track filter)."""
+
+
+_one_at_a_time = False
+
+
+@contextlib.contextmanager
+def runs_one_at_a_time() -> Iterator[None]:
+    """Within this context monte_carlo steps every run alone (a one-track filter): the
+    per-run loop that stepping the runs together replaces, for benchmarks and checks."""
+    global _one_at_a_time
+    saved, _one_at_a_time = _one_at_a_time, True
+    try:
+        yield
+    finally:
+        _one_at_a_time = saved
+
+
+def missing_patterns(Z: np.ndarray) -> list[np.ndarray]:
+    """The runs of Z (R, K, m) grouped by which cells they miss (NaN) over the whole
+    sequence: runs of one group miss the same cells at every step and can be stepped as one
+    stack (GaussianFilter.update). Groups in order of their first run."""
+    keys = np.isfinite(Z).reshape(len(Z), -1)
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    return [np.flatnonzero(inverse.reshape(-1) == g) for g in order]
+
+
+def monte_carlo(kind: str, factory: Factory, Z: np.ndarray, dt: float | np.ndarray,
+                U: np.ndarray | None = None, record: Mapping[str, Recorder] | None = None,
+                before_step: Callable[[GaussianFilter, int], None] | None = None,
+                batch: bool = True) -> MonteCarloRun:
+    """Run the filter of `factory` over the measurements Z[r] (K, m) (inputs U[r]) of every
+    run r (run_sequence).
+
+    batch (the default): the runs that miss the same cells (missing_patterns) are stepped
+    together, `factory(runs)` building one filter for the index array `runs`; that is the
+    same code as one track, with a leading run axis. Kinds that cannot (`batched` False, or
+    a factory that does not build a stack) and batch=False run one run at a time, each
+    filter built for one track, `factory(r)`. A run whose filter cannot be built or
+    fails is marked failed and left NaN; the others are unaffected (paired comparisons stay
+    paired): when a stack fails, its runs are stepped again one at a time to find the
+    failing ones. Under runs_one_at_a_time() every run is stepped alone."""
+    outs: list[FilterOutput | None] = [None] * len(Z)
+    sizes: set[int] = set()
+    together = batch and not _one_at_a_time
+    for runs in missing_patterns(Z) if together else [[r] for r in range(len(Z))]:
+        stacked = _run_stack(factory, np.asarray(runs), Z, dt, U, record, before_step) \
+            if batch and len(runs) > 1 else None
+        if stacked is None:
+            stacked = []
+            for r in runs:
+                out, n = _run_one(factory, int(r), Z, dt, U, record, before_step)
+                stacked.append(out)
+                sizes.update([] if n is None else [n])
+        for r, out in zip(runs, stacked):
+            outs[r] = out
+    sizes.update(o.x.shape[-1] for o in outs if o is not None)
+    if not sizes:
         raise EstimationError(f"filter {kind!r} could not be built for any run")
+    n = sizes.pop()
     K = Z.shape[1]
     good = next((o for o in outs if o is not None), None)
     blank = FilterOutput(x=np.full((K, n), np.nan), P=np.full((K, n, n), np.nan),
@@ -152,6 +221,54 @@ def monte_carlo(kind: str, factory: Callable[[int], GaussianFilter], Z: np.ndarr
                          nis_dof=stack("nis_dof"), x0=stack("x0"), P0=stack("P0"),
                          series={name: np.stack([o.series[name] for o in rows])
                                  for name in blank.series})
+
+
+_FAILURES = (EstimationError, np.linalg.LinAlgError, ArithmeticError)
+
+
+def _run_stack(factory: Factory, runs: np.ndarray, Z: np.ndarray, dt: float | np.ndarray,
+               U: np.ndarray | None, record: Mapping[str, Recorder] | None,
+               before_step: Callable[[GaussianFilter, int], None] | None
+               ) -> list[FilterOutput] | None:
+    """The outputs of runs `runs` stepped as one stack, one per run; None if the factory
+    builds no stack of them (a kind without `batched`, a factory that ignores the runs) or
+    the stack failed."""
+    try:
+        filt = factory(runs)
+    except (ValueError, TypeError, IndexError, *_FAILURES):
+        return None                 # stepped one run at a time, which reports real errors
+    if not filt.batched or filt.x.shape[:-1] != (len(runs),):
+        return None
+    try:
+        out = run_sequence(filt, Z[runs], dt, None if U is None else U[runs], record,
+                           before_step)
+    except _FAILURES:
+        return None
+    return [_run_of(out, i) for i in range(len(runs))]
+
+
+def _run_one(factory: Factory, r: int, Z: np.ndarray, dt: float | np.ndarray,
+             U: np.ndarray | None, record: Mapping[str, Recorder] | None,
+             before_step: Callable[[GaussianFilter, int], None] | None
+             ) -> tuple[FilterOutput | None, int | None]:
+    """Run r alone, its filter built for one track (`factory(r)`), and the state size of its
+    filter; (None, ...) if it could not be built or failed."""
+    try:
+        filt = factory(r)
+    except _FAILURES:
+        return None, None
+    try:
+        out = run_sequence(filt, Z[r], dt, None if U is None else U[r], record, before_step)
+    except _FAILURES:
+        return None, filt.x.shape[-1]
+    return out, filt.x.shape[-1]
+
+
+def _run_of(out: FilterOutput, i: int) -> FilterOutput:
+    """Run i of a stack's output, without the run axis."""
+    return FilterOutput(x=out.x[i], P=out.P[i], nis=out.nis[i], nis_dof=out.nis_dof[i],
+                        x0=out.x0[i], P0=out.P0[i],
+                        series={name: a[i] for name, a in out.series.items()})
 
 
 # ------------------------------------------------------------------------- statistics

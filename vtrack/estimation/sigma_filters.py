@@ -1,7 +1,8 @@
 """Sigma-point filters: UKF and CKF share one step and differ only in their SigmaPointRule;
 the iterated posterior linearisation filter (IPLF) iterates that update; the square-root UKF
 and seed 002's cube-root variant share one square-root step and differ only in the root.
-Missing measurement cells are NaN (GaussianFilter.update).
+Missing measurement cells are NaN (GaussianFilter.update). Every filter here takes a stack
+of runs (a leading axis, GaussianFilter).
 """
 
 from __future__ import annotations
@@ -22,10 +23,9 @@ from vtrack.estimation.iterated import (
 )
 from vtrack.estimation.kalman import Innovation
 from vtrack.estimation.linalg import (
-    DowndateError,
     NotPositiveDefiniteError,
     cholesky,
-    cholupdate,
+    cholupdate_each,
     spd_root,
     symmetrize,
     tria,
@@ -38,9 +38,19 @@ def weighted_mean(Y: np.ndarray, Wm: np.ndarray, ref: np.ndarray,
                   residual: Callable[[np.ndarray, np.ndarray], np.ndarray]
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Sigma-point mean taken relative to a reference, ybar = ref + sum Wm_i r(Y_i, ref), and the
-    deviations r(Y_i, ybar). With wrapped residuals this averages angles across +-pi (SEEDS 1.4)."""
-    mean = ref + Wm @ residual(Y, ref)
-    return mean, residual(Y, mean)
+    deviations r(Y_i, ybar). With wrapped residuals this averages angles across +-pi (SEEDS 1.4).
+    Y (..., N, d), ref (..., d)."""
+    mean = ref + Wm @ residual(Y, ref[..., None, :])
+    return mean, residual(Y, mean[..., None, :])
+
+
+def _T(a: np.ndarray) -> np.ndarray:
+    return np.swapaxes(a, -1, -2)
+
+
+def _inputs_of_points(u: np.ndarray | None) -> np.ndarray | None:
+    """The input u (..., p) of a track or stack, shaped to broadcast over its sigma points."""
+    return None if u is None else np.asarray(u, dtype=float)[..., None, :]
 
 
 class SigmaPointKalmanFilter(GaussianFilter):
@@ -57,10 +67,10 @@ class SigmaPointKalmanFilter(GaussianFilter):
 
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
         X = self.rule.points(self.x, cholesky(self.P, "state covariance"))
-        Xp = self.motion.f(X, dt, u)
+        Xp = self.motion.f(X, dt, _inputs_of_points(u))
         ref = self.motion.f(self.x, dt, u)
         self.x, dX = weighted_mean(Xp, self.rule.Wm, ref, self.motion.residual)
-        self.P = symmetrize((dX.T * self.rule.Wc) @ dX + self.motion.Q(dt))
+        self.P = symmetrize((_T(dX) * self.rule.Wc) @ dX + self.motion.Q(dt))
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
         ybar, Pxy, Pyy = sigma_moments(self.rule, self.motion, meas, self.x, self.P)
@@ -68,12 +78,12 @@ class SigmaPointKalmanFilter(GaussianFilter):
         L = cholesky(S, "innovation covariance S")
         # K = Pxy S^-1 through the factor. numpy's solve, not scipy's solve_triangular: the
         # latter can take milliseconds per tiny call under a multi-threaded OpenBLAS.
-        K = np.linalg.solve(L.T, np.linalg.solve(L, Pxy.T)).T
+        K = _T(np.linalg.solve(_T(L), np.linalg.solve(L, _T(Pxy))))
         nu = meas.residual(z, ybar)
-        self.x = self.x + K @ nu
-        self.P = symmetrize(self.P - K @ S @ K.T)
-        w = np.linalg.solve(L, nu)
-        return Innovation(nu=nu, S=S, K=K, nis=np.asarray(w @ w))
+        self.x = self.x + (K @ nu[..., None])[..., 0]
+        self.P = symmetrize(self.P - K @ S @ _T(K))
+        w = np.linalg.solve(L, nu[..., None])[..., 0]
+        return Innovation(nu=nu, S=S, K=K, nis=np.sum(w * w, axis=-1))
 
 
 def sigma_moments(rule: SigmaPointRule, motion: MotionModel, meas: MeasurementModel,
@@ -83,8 +93,8 @@ def sigma_moments(rule: SigmaPointRule, motion: MotionModel, meas: MeasurementMo
     Pyy = sum Wc (Y_i - ybar)(Y_i - ybar)' (residuals wrapped for angles)."""
     X = rule.points(m, cholesky(P, "covariance of the sigma points"))
     ybar, dY = weighted_mean(meas.h(X), rule.Wm, meas.h(m), meas.residual)
-    dX = motion.residual(X, m)
-    return ybar, (dX.T * rule.Wc) @ dY, (dY.T * rule.Wc) @ dY
+    dX = motion.residual(X, m[..., None, :])
+    return ybar, (_T(dX) * rule.Wc) @ dY, (_T(dY) * rule.Wc) @ dY
 
 
 def statistical_linear_regression(rule: SigmaPointRule, motion: MotionModel,
@@ -99,11 +109,13 @@ def statistical_linear_regression(rule: SigmaPointRule, motion: MotionModel,
     weight (the unscented rule with kappa < 0) can make it indefinite, and then its negative
     eigenvalues are set to zero."""
     ybar, Pxy, Pyy = sigma_moments(rule, motion, meas, m, P)
-    A = np.linalg.solve(P, Pxy).T
-    Omega = symmetrize(Pyy - A @ P @ A.T)
+    A = _T(np.linalg.solve(P, Pxy))
+    Omega = symmetrize(Pyy - A @ P @ _T(A))
     d, U = np.linalg.eigh(Omega)
-    if d.min() < 0.0:
-        Omega = (U * np.maximum(d, 0.0)) @ U.T
+    negative = d.min(axis=-1) < 0.0
+    if negative.any():
+        clipped = (U * np.maximum(d, 0.0)[..., None, :]) @ _T(U)
+        Omega = np.where(negative[..., None, None], clipped, Omega)
     return A, ybar, Omega
 
 
@@ -142,7 +154,7 @@ class IteratedPosteriorLinearisationFilter(SigmaPointKalmanFilter):
         super().__init__(motion, measurement, x0, P0, rule, "iplf")
         self.max_iterations, self.tolerance, self.damped = iteration_options(
             max_iterations, tolerance, damped)
-        self.iterations = 0
+        self.iterations: int | np.ndarray = 0
 
     def _update(self, meas: MeasurementModel, z: np.ndarray) -> Innovation:
         def linearise(m: np.ndarray, P: np.ndarray) -> Linearisation:
@@ -156,22 +168,22 @@ class IteratedPosteriorLinearisationFilter(SigmaPointKalmanFilter):
 
 @dataclass
 class _Root:
-    """Matrix 'square root' of order p: Cholesky for p = 2, principal cube root for p = 3."""
+    """Matrix 'square root' of order p: Cholesky for p = 2, principal cube root for p = 3;
+    over a stack, each matrix on its own."""
 
     p: int
 
     def of(self, M: np.ndarray, what: str) -> np.ndarray:
-        if self.p == 2:
-            try:
-                return cholesky(M, what)
-            except NotPositiveDefiniteError:  # a PSD (singular) Q: any factor works for tria
-                d, U = np.linalg.eigh(symmetrize(M))
-                return U * np.sqrt(np.clip(d, 0.0, None))
         try:
-            return spd_root(M, 1.0 / self.p)
-        except NotPositiveDefiniteError:  # a PSD (singular) Q or R, as for p = 2 above
-            d, U = np.linalg.eigh(symmetrize(M))
-            return (U * np.clip(d, 0.0, None) ** (1.0 / self.p)) @ U.T
+            return cholesky(M, what) if self.p == 2 else spd_root(M, 1.0 / self.p)
+        except NotPositiveDefiniteError:
+            if np.ndim(M) > 2:              # the stack's matrices one by one
+                return np.stack([self.of(Mi, what) for Mi in M])
+        # a PSD (singular) Q or R: any factor works for tria, the principal root for p = 3
+        d, U = np.linalg.eigh(symmetrize(M))
+        if self.p == 2:
+            return U * np.sqrt(np.clip(d, 0.0, None))
+        return (U * np.clip(d, 0.0, None) ** (1.0 / self.p)) @ U.T
 
     def weight(self, w: float) -> float:
         return float(w) ** (1.0 / self.p)
@@ -190,7 +202,8 @@ class SquareRootUKF(GaussianFilter):
     factor and is counted in `fallbacks`. If even that matrix is not positive definite, the
     filter raises NotPositiveDefiniteError, unless `repair` is set: then the matrix is
     repaired by clipping its eigenvalues at 1e-10 x the largest (SEEDS 1.3) and the event is
-    counted in `repairs` (seed 002's cube-root variant needs it to run at all).
+    counted in `repairs` (seed 002's cube-root variant needs it to run at all). For a stack
+    of runs both counters are per run, and so are the fallbacks and repairs.
     """
 
     repair = False
@@ -202,13 +215,14 @@ class SquareRootUKF(GaussianFilter):
         self.rule = rule
         self.root = _Root(root)
         self.kind = kind
-        self.fallbacks = 0
-        self.repairs = 0
+        runs = np.shape(x0)[:-1]
+        self.fallbacks: int | np.ndarray = np.zeros(runs, dtype=int) if runs else 0
+        self.repairs: int | np.ndarray = np.zeros(runs, dtype=int) if runs else 0
         super().__init__(motion, measurement, x0, P0)  # sets S through the P setter
 
     @property
     def P(self) -> np.ndarray:  # type: ignore[override]
-        return self.S @ self.S.T
+        return self.S @ _T(self.S)
 
     @P.setter
     def P(self, value: np.ndarray) -> None:
@@ -220,32 +234,52 @@ class SquareRootUKF(GaussianFilter):
     def _factor(self, dev: np.ndarray, noise_root: np.ndarray) -> np.ndarray:
         """tria([w1 * dev_1..2n, noise root]) then the rank-1 term of the centre point (Wc0)."""
         Wc = self.rule.Wc
-        S = tria(np.hstack([self.root.weight(Wc[1]) * dev[1:].T, noise_root]))
+        noise = np.broadcast_to(noise_root, dev.shape[:-2] + np.shape(noise_root))
+        S = tria(np.concatenate([self.root.weight(Wc[1]) * _T(dev[..., 1:, :]), noise], axis=-1))
         if Wc[0] == 0.0:
             return S
-        v = np.sqrt(abs(Wc[0])) * dev[0]
-        try:
-            return cholupdate(S, v, np.sign(Wc[0]))
-        except DowndateError:
-            self.fallbacks += 1
-            return self._full_factor(S @ S.T + np.sign(Wc[0]) * np.outer(v, v),
-                                     "covariance after the Wc0 downdate")
+        v = np.sqrt(abs(Wc[0])) * dev[..., 0, :]
+        updated, ok = cholupdate_each(S, v, np.sign(Wc[0]))
+        return self._where_failed(updated, ok, lambda: S @ _T(S) + np.sign(Wc[0])
+                                  * v[..., :, None] * v[..., None, :],
+                                  "covariance after the Wc0 downdate")
 
-    def _full_factor(self, M: np.ndarray, what: str) -> np.ndarray:
-        """Cholesky factor of the full-covariance fallback, or its repair (see class doc)."""
+    def _where_failed(self, S: np.ndarray, ok: np.ndarray, full: Callable[[], np.ndarray],
+                      what: str) -> np.ndarray:
+        """S, with the factors whose up/downdate failed replaced by the factor of the full
+        covariance `full()` (the fallback, counted per run)."""
+        if np.all(ok):
+            return S
+        M = full()
+        if np.ndim(ok) == 0:
+            self.fallbacks += 1
+            return self._full_factor(M, what)
+        bad = np.flatnonzero(~ok)
+        self.fallbacks[bad] += 1
+        S = S.copy()
+        for r in bad:
+            S[r] = self._full_factor(M[r], what, r)
+        return S
+
+    def _full_factor(self, M: np.ndarray, what: str, run: int | None = None) -> np.ndarray:
+        """Cholesky factor of the full-covariance fallback (of one run), or its repair (see
+        class doc)."""
         M = symmetrize(M)
         try:
             return cholesky(M, what)
         except NotPositiveDefiniteError:
             if not self.repair or not np.all(np.isfinite(M)):
                 raise
-            self.repairs += 1
+            if run is None:
+                self.repairs += 1
+            else:
+                self.repairs[run] += 1
             d, U = np.linalg.eigh(M)
             floor = 1e-10 * max(float(d.max()), np.finfo(float).tiny)
             return tria(U * np.sqrt(np.maximum(d, floor)))
 
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
-        Xp = self.motion.f(self._points(self.x), dt, u)
+        Xp = self.motion.f(self._points(self.x), dt, _inputs_of_points(u))
         self.x, dX = weighted_mean(Xp, self.rule.Wm, self.motion.f(self.x, dt, u),
                                    self.motion.residual)
         self.S = self._factor(dX, self.root.of(self.motion.Q(dt), "process noise Q"))
@@ -254,20 +288,19 @@ class SquareRootUKF(GaussianFilter):
         X = self._points(self.x)
         ybar, dY = weighted_mean(meas.h(X), self.rule.Wm, meas.h(self.x), meas.residual)
         Sy = self._factor(dY, self.root.of(meas.R, "measurement noise R"))
-        dX = self.motion.residual(X, self.x)
-        Pxy = (dX.T * self.rule.Wc) @ dY
+        dX = self.motion.residual(X, self.x[..., None, :])
+        Pxy = (_T(dX) * self.rule.Wc) @ dY
         # K = Pxy (Sy Sy')^-1 by two triangular solves (SEEDS 1.5).
-        K = np.linalg.solve(Sy.T, np.linalg.solve(Sy, Pxy.T)).T
+        K = _T(np.linalg.solve(_T(Sy), np.linalg.solve(Sy, _T(Pxy))))
         nu = meas.residual(z, ybar)
-        self.x = self.x + K @ nu
+        self.x = self.x + (K @ nu[..., None])[..., 0]
         U = K @ Sy
-        S = self.S
-        try:
-            for j in range(U.shape[1]):
-                S = cholupdate(S, U[:, j], -1.0)
-        except DowndateError:
-            self.fallbacks += 1
-            S = self._full_factor(self.S @ self.S.T - U @ U.T, "updated covariance")
-        self.S = S
-        w = np.linalg.solve(Sy, nu)
-        return Innovation(nu=nu, S=Sy @ Sy.T, K=K, nis=np.asarray(w @ w))
+        S, ok = self.S, np.ones(self.x.shape[:-1], dtype=bool)
+        for j in range(U.shape[-1]):
+            S, ok_j = cholupdate_each(S, U[..., :, j], -1.0)
+            ok &= ok_j
+        prior = self.S
+        self.S = self._where_failed(S, ok, lambda: prior @ _T(prior) - U @ _T(U),
+                                    "updated covariance")
+        w = np.linalg.solve(Sy, nu[..., None])[..., 0]
+        return Innovation(nu=nu, S=Sy @ _T(Sy), K=K, nis=np.sum(w * w, axis=-1))

@@ -23,11 +23,13 @@ class SigmaPointRule:
     c: float               # n + lambda (the cube-root variant needs it; see sigma_filters)
 
     def points(self, m: np.ndarray, L: np.ndarray, spread: float | None = None) -> np.ndarray:
-        """Sigma points (N, n) of mean m and factor L (L L' = P, or the factor S of SR filters)."""
+        """Sigma points (N, n) of mean m and factor L (L L' = P, or the factor S of SR filters);
+        (..., N, n) for stacks m (..., n), L (..., n, n)."""
         s = self.spread if spread is None else spread
-        cols = s * L.T
-        pts = [m[None, :]] if self.center else []
-        return np.concatenate(pts + [m + cols, m - cols], axis=0)
+        cols = s * np.swapaxes(L, -1, -2)
+        mean = m[..., None, :]
+        pts = [mean] if self.center else []
+        return np.concatenate(pts + [mean + cols, mean - cols], axis=-2)
 
 
 def unscented(n: int, alpha: float = 1.0, beta: float = 0.0, kappa: float | None = None

@@ -2,11 +2,8 @@
 `ankf` experiments: constants, truth generators, measurements, the PCRLB, and the metrics of
 their JSON, on the Monte Carlo harness (vtrack.estimation.montecarlo).
 
-Every filter comes from `vtrack.filter_kinds.make_filter` and runs per Monte Carlo run
-through the harness. The EKF, ANKF1 and ANKF2 may instead run all runs at once: those paths
-are the core steps with a leading run axis (kalman.kf_predict, models.residual/h/H,
-kalman.kf_update, adaptive.ankf.ankf1_update/ankf2_update, with the options validated by
-building the filter), and tests check them against the per-run filters.
+Every filter comes from `vtrack.filter_kinds.make_filter` and runs through the harness,
+which steps all Monte Carlo runs of a case as one stack of the core filter.
 """
 
 from __future__ import annotations
@@ -15,14 +12,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vtrack.adaptive.ankf import ankf1_update, ankf2_update
-from vtrack.adaptive.innovation_windows import InnovationCovarianceWindow
 from vtrack.estimation.bounds import chi2_band, paired_difference, pcrlb_linear
-from vtrack.estimation.kalman import kf_predict, kf_update
-from vtrack.estimation.linalg import EstimationError, wrap_angle
+from vtrack.estimation.linalg import wrap_angle
 from vtrack.estimation.models import Bearings, WienerVelocity
 from vtrack.estimation.montecarlo import (
     MonteCarloRun,
+    each_run,
     monte_carlo,
     nees_series,
     rmse,
@@ -158,107 +153,20 @@ def measure(truth: np.ndarray, sensors: np.ndarray, sigma: float | np.ndarray,
 # --------------------------------------------------------------------------- filtering
 
 
-def _batch_start(kind: str, motion: WienerVelocity, meas: Bearings, Z: np.ndarray,
-                 x0s: np.ndarray, P0: np.ndarray, options: dict[str, object]):
-    """The core filter built once (validates and defaults the options) and the batch arrays."""
-    template = make_filter(kind, motion, meas, x0s[0], P0, **options)
-    runs, K, _ = Z.shape
-    n = len(x0s[0])
-    x = np.array(x0s, dtype=float)
-    P = np.broadcast_to(P0, (runs, n, n)).copy()
-    return template, x, P, np.empty((runs, K, n)), np.empty((runs, K, n, n))
-
-
-def _batch_innovation(meas: Bearings, z: np.ndarray, x: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """nu = residual(z, h(x-)) and H(x-) for every run (the core models' own functions)."""
-    return meas.residual(z, meas.h(x)), np.stack([meas.H(xi) for xi in x])
-
-
-def batched_ekf(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
-                P0: np.ndarray, dt: float = DT, **options: object) -> MonteCarloRun:
-    """The core EKF over all runs at once: kf_predict, then nu = residual(z, h(x-)) and
-    kf_update with H(x-), every array carrying a leading run axis (seed 000 eqs. 7-9)."""
-    _, x, P, X, PP = _batch_start("ekf", motion, meas, Z, x0s, P0, options)
-    F, Q = motion.F(x[0], dt), motion.Q(dt)
-    for k in range(Z.shape[1]):
-        x, P = kf_predict(x, P, F, Q, fx=motion.f(x, dt))
-        nu, H = _batch_innovation(meas, Z[:, k], x)
-        x, P, _ = kf_update(x, P, nu, H, meas.R)
-        X[:, k], PP[:, k] = x, P
-    return MonteCarloRun("ekf", X, PP, np.zeros(len(Z), dtype=bool))
-
-
-def batched_ankf1(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
-                  P0: np.ndarray, dt: float = DT, **options: object) -> MonteCarloRun:
-    """ANKF1 over all runs at once: the prediction of InnovationAdaptiveEKF.predict and the
-    core's adaptive.ankf1_update (what the class calls for a full measurement vector) with a
-    leading run axis. Needs every measurement present."""
-    f, x, P, X, PP = _batch_start("ankf1", motion, meas, Z, x0s, P0, options)
-    runs, K, m = Z.shape
-    F, Q = motion.F(x[0], dt), motion.Q(dt)
-    window = InnovationCovarianceWindow(f.window.size, (runs, m))
-    R_hat = Q_hat = None
-    r_used = np.empty((runs, K, m))
-    for k in range(K):
-        x, P = kf_predict(x, P, F, Q if Q_hat is None else Q_hat, fx=motion.f(x, dt))
-        nu, H = _batch_innovation(meas, Z[:, k], x)
-        x, P, _, R, R_hat, Q_new = ankf1_update(x, P, nu, H, meas.R, window, f.r_floor,
-                                                f.adapt_r, f.adapt_q, R_hat)
-        if Q_new is not None:
-            Q_hat = Q_new
-        X[:, k], PP[:, k] = x, P
-        r_used[:, k] = np.diagonal(R, axis1=-2, axis2=-1)
-    return MonteCarloRun("ankf1", X, PP, np.zeros(runs, dtype=bool), series={"R_used": r_used})
-
-
-def batched_ankf2(motion: WienerVelocity, meas: Bearings, Z: np.ndarray, x0s: np.ndarray,
-                  P0: np.ndarray, dt: float = DT, **options: object) -> MonteCarloRun:
-    """ANKF2 over all runs at once: the prediction of FadingAdaptiveEKF.predict (Pprop kept
-    apart from Q) and the core's adaptive.ankf2_update with a leading run axis. Needs every
-    measurement present."""
-    f, x, P, X, PP = _batch_start("ankf2", motion, meas, Z, x0s, P0, options)
-    runs, K, m = Z.shape
-    F, Q = motion.F(x[0], dt), motion.Q(dt)
-    window = InnovationCovarianceWindow(f.window.size, (runs, m))
-    lambda_R = None
-    r_used, lam_p = np.empty((runs, K, m)), np.empty((runs, K))
-    for k in range(K):
-        x, Pprop = kf_predict(x, P, F, np.zeros_like(Q), fx=motion.f(x, dt))
-        nu, H = _batch_innovation(meas, Z[:, k], x)
-        x, P, _, R, lam, lambda_R = ankf2_update(
-            x, Pprop, Q, nu, H, meas.R, window, f.lambda_max, f.ratio_min, f.ratio_max,
-            f.multiple_factors, f.fade_prior, lambda_R)
-        X[:, k], PP[:, k] = x, P
-        r_used[:, k] = np.diagonal(R, axis1=-2, axis2=-1)
-        lam_p[:, k] = lam
-    return MonteCarloRun("ankf2", X, PP, np.zeros(runs, dtype=bool),
-                         series={"R_used": r_used, "lambda_P": lam_p})
-
-
-_BATCHED = {"ekf": batched_ekf, "ankf1": batched_ankf1, "ankf2": batched_ankf2}
 _DIAGNOSTICS = {  # per-step diagnostics of the adaptive kinds (diag of the R used, fading)
-    "ankf1": {"R_used": lambda f: np.diagonal(f.R_used)},
-    "ankf2": {"R_used": lambda f: np.diagonal(f.R_used), "lambda_P": lambda f: f.lambda_P},
+    "ankf1": {"R_used": lambda f: each_run(f, np.diagonal(f.R_used, axis1=-2, axis2=-1))},
+    "ankf2": {"R_used": lambda f: each_run(f, np.diagonal(f.R_used, axis1=-2, axis2=-1)),
+              "lambda_P": lambda f: each_run(f, f.lambda_P, 0)},
 }
 
 
 def run_filter(kind: str, motion: WienerVelocity, meas: Bearings, Z: np.ndarray,
                x0s: np.ndarray, P0: np.ndarray, batch: bool = True, dt: float = DT,
                **options: object) -> MonteCarloRun:
-    """Run filter `kind` over every run (the harness, montecarlo.monte_carlo). The EKF, ANKF1
-    and ANKF2 run all runs at once unless batch=False (the same core functions with a run
-    axis; tests check the numbers against the per-run filters); if a batched run fails, all
-    runs are redone one by one so that only the failing run is marked."""
-    if batch and kind in _BATCHED and np.all(np.isfinite(Z)):
-        try:
-            out = _BATCHED[kind](motion, meas, Z, x0s, P0, dt, **options)
-            if np.all(np.isfinite(out.x)) and np.all(np.isfinite(out.P)):
-                return out
-        except (EstimationError, np.linalg.LinAlgError):
-            pass
+    """Run filter `kind` over every run (the harness, montecarlo.monte_carlo): all runs
+    stepped together as one stack of the core filter (batch), or one at a time."""
     return monte_carlo(kind, lambda r: make_filter(kind, motion, meas, x0s[r], P0, **options),
-                       Z, dt, record=_DIAGNOSTICS.get(kind))
+                       Z, dt, record=_DIAGNOSTICS.get(kind), batch=batch)
 
 
 # ----------------------------------------------------------------------------- bounds

@@ -27,6 +27,7 @@ from vtrack.estimation.filters import GaussianFilter
 from vtrack.estimation.models import LinearMeasurement, MotionModel
 from vtrack.estimation.montecarlo import (
     MonteCarloRun,
+    each_run,
     monte_carlo,
     nees_series,
     nees_summary,
@@ -90,7 +91,7 @@ class ConstantVelocityInput3D(MotionModel):
 
     def f(self, x: np.ndarray, dt: float, u: np.ndarray | None = None) -> np.ndarray:
         out = np.asarray(x, dtype=float) @ self.A.T
-        return out if u is None else out + self.B @ u
+        return out if u is None else out + np.asarray(u, dtype=float) @ self.B.T
 
     def F(self, x: np.ndarray, dt: float, u: np.ndarray | None = None) -> np.ndarray:
         return self.A
@@ -147,9 +148,10 @@ def _build(kind: str, case: FuzzyCase, xhat0: np.ndarray) -> GaussianFilter:
     return make_filter(kind, motion, position_sensor(case.r_filter), xhat0, P0, **opts)
 
 
-# diagonal of the R the filter uses and the fuzzy-q scale, after each step
-RECORD = {"R": lambda f: np.diag(getattr(f, "R", f.measurement.R)),
-          "q_scale": lambda f: getattr(f, "q_scale", np.ones(3))}
+# diagonal of the R the filter uses and the fuzzy-q scale, after each step (one row per run)
+RECORD = {"R": lambda f: each_run(f, np.diagonal(getattr(f, "R", f.measurement.R),
+                                                 axis1=-2, axis2=-1)),
+          "q_scale": lambda f: each_run(f, getattr(f, "q_scale", np.ones(3)))}
 
 
 def run_filters(case: FuzzyCase, u: np.ndarray, z: np.ndarray, xhat0: np.ndarray

@@ -44,14 +44,24 @@ UT_KINDS = ("ukf", "srukf", "crukf")       # the kinds that take the paper's UT 
 
 
 def block_diag(*blocks: np.ndarray) -> np.ndarray:
-    """Block-diagonal matrix of square blocks (scipy's is slow for tiny matrices)."""
-    n = sum(len(b) for b in blocks)
-    out = np.zeros((n, n))
+    """Block-diagonal matrix of square blocks (scipy's is slow for tiny matrices); a stack
+    of them if some blocks are stacks (..., k, k)."""
+    n = sum(b.shape[-1] for b in blocks)
+    out = np.zeros(np.broadcast_shapes(*(b.shape[:-2] for b in blocks)) + (n, n))
     i = 0
     for b in blocks:
-        out[i:i + len(b), i:i + len(b)] = b
-        i += len(b)
+        k = b.shape[-1]
+        out[..., i:i + k, i:i + k] = b
+        i += k
     return out
+
+
+def _turn_jacobian(th: np.ndarray, cfg: RobotConfig) -> np.ndarray:
+    """d step / d [x, y, theta] (and d / d w) at the headings th (...,): (..., 3, 3)."""
+    G = np.broadcast_to(np.eye(3), np.shape(th) + (3, 3)).copy()
+    G[..., 0, 2] = -cfg.c1 * np.sin(th)
+    G[..., 1, 2] = cfg.c2 * np.cos(th)
+    return G
 
 
 # Paper Table 1 (three unexplained columns each; SEEDS 4.6). The paper has no SR-UKF.
@@ -138,9 +148,7 @@ class AdditiveRobotMotion(MotionModel):
         return robot_step(x, 0.0, self.cfg)
 
     def F(self, x: np.ndarray, dt: float, u: np.ndarray | None = None) -> np.ndarray:
-        th = float(x[2]) + self.cfg.dtheta
-        return np.array([[1.0, 0.0, -self.cfg.c1 * np.sin(th)],
-                         [0.0, 1.0, self.cfg.c2 * np.cos(th)], [0.0, 0.0, 1.0]])
+        return _turn_jacobian(np.asarray(x, dtype=float)[..., 2] + self.cfg.dtheta, self.cfg)
 
     def Q(self, dt: float) -> np.ndarray:
         return np.diag(self.cfg.W)
@@ -166,12 +174,11 @@ class AugmentedRobotMotion(MotionModel):
     def F(self, z: np.ndarray, dt: float, u: np.ndarray | None = None) -> np.ndarray:
         """d f / d [x, w, n]: the robot rows depend on the heading and on w (through
         theta' = theta + dtheta + w3, and w1, w2 added); w and n are carried."""
-        th = float(z[2]) + self.cfg.dtheta + float(z[5])
-        J = np.eye(9)
-        G = np.array([[1.0, 0.0, -self.cfg.c1 * np.sin(th)],
-                      [0.0, 1.0, self.cfg.c2 * np.cos(th)], [0.0, 0.0, 1.0]])
-        J[:3, :3] = G
-        J[:3, 3:6] = G
+        z = np.asarray(z, dtype=float)
+        G = _turn_jacobian(z[..., 2] + self.cfg.dtheta + z[..., 5], self.cfg)
+        J = np.broadcast_to(np.eye(9), G.shape[:-2] + (9, 9)).copy()
+        J[..., :3, :3] = G
+        J[..., :3, 3:6] = G
         return J
 
     def Q(self, dt: float) -> np.ndarray:
@@ -208,19 +215,21 @@ class AugmentedNoiseFilter(GaussianFilter):
     covariance blockdiag(P, W, V) -- for the square-root kinds, factor blockdiag(S_x,
     root(W), root(V)), with S_x the leading block of the propagated factor, so the cube-root
     variant keeps its own factor as the paper's algorithm does. The update then uses the
-    predicted augmented statistics (see AugmentedPose for the measurement noise).
+    predicted augmented statistics (see AugmentedPose for the measurement noise). Takes a
+    stack of runs (x0 (R, 3)).
     """
 
     def __init__(self, kind: str, motion: MotionModel, measurement: MeasurementModel,
                  x0: np.ndarray, P0: np.ndarray, W: np.ndarray, V: np.ndarray,
                  **ut: float) -> None:
-        self.n = len(x0)
+        self.n = np.shape(x0)[-1]
         self.W = np.asarray(W, dtype=float)
         self.V = np.asarray(V, dtype=float)
         self.kind = kind
-        self.inner = make_filter(kind, motion, measurement,
-                                 np.concatenate([x0, np.zeros(len(self.W) + len(self.V))]),
+        x0 = np.asarray(x0, dtype=float)
+        self.inner = make_filter(kind, motion, measurement, self._augmented(x0),
                                  block_diag(P0, self.W, self.V), **ut)
+        self.batched = self.inner.batched
         self.motion = motion
         self.measurement = measurement
         self.last: Innovation | None = None
@@ -228,27 +237,31 @@ class AugmentedNoiseFilter(GaussianFilter):
         self._pull()
 
     @property
-    def fallbacks(self) -> int:
-        return int(getattr(self.inner, "fallbacks", 0))
+    def fallbacks(self) -> int | np.ndarray:
+        return getattr(self.inner, "fallbacks", 0)
 
     @property
-    def repairs(self) -> int:
-        return int(getattr(self.inner, "repairs", 0))
+    def repairs(self) -> int | np.ndarray:
+        return getattr(self.inner, "repairs", 0)
+
+    def _augmented(self, x: np.ndarray) -> np.ndarray:
+        """[x, 0, 0]: the state with the noise components (of each run)."""
+        zeros = np.zeros(x.shape[:-1] + (len(self.W) + len(self.V),))
+        return np.concatenate([x, zeros], axis=-1)
 
     def _pull(self) -> None:
         n = self.n
-        self.x = self.inner.x[:n].copy()
-        self.P = self.inner.P[:n, :n].copy()
+        self.x = self.inner.x[..., :n].copy()
+        self.P = self.inner.P[..., :n, :n].copy()
 
     def _augment(self) -> None:
         inner = self.inner
-        zeros = np.zeros(len(self.W) + len(self.V))
         if isinstance(inner, SquareRootUKF):
-            Sx = inner.S[: self.n, : self.n]
+            Sx = inner.S[..., : self.n, : self.n]
             inner.S = block_diag(Sx, inner.root.of(self.W, "W"), inner.root.of(self.V, "V"))
-            inner.x = np.concatenate([inner.x[: self.n], zeros])
+            inner.x = self._augmented(inner.x[..., : self.n])
         else:
-            inner.x = np.concatenate([self.x, zeros])
+            inner.x = self._augmented(self.x)
             inner.P = block_diag(self.P, self.W, self.V)
 
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
@@ -337,6 +350,7 @@ def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KI
         zs.append(z)
         xhat0s.append(filt_rng.multivariate_normal(np.array(cfg.x0), np.diag(cfg.P0))
                       if cfg.xhat0 is None else np.array(cfg.xhat0))
+    xhat0s = np.array(xhat0s)            # indexed by a stack of runs in the harness
     fields = ("eps_x", "eps_theta", "pi", "sq", "nees", "fallbacks", "repairs",
               "first_repair", "ok")
     per: dict[str, dict[str, list]] = {k: {f: [] for f in fields + ("failed",)} for k in kinds}
