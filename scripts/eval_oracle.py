@@ -17,10 +17,13 @@ ceiling tells how much of a clip's loss is the detector's.
 
 vtrack's tracker runs with the default TrackerConfig (or `--config`'s [tracker]), through
 `Tracker.step` as `vtrack track` runs it. No detector priors are given, so nothing is split.
+`--source appearance` (the default) gives the true boxes as an appearance detector's (whole
+vehicles: `seen`, vtrack/tracking/provenance.py), `--source motion` as motion blobs (every
+blob heuristic applies); the output's header and the JSON say which.
 Scores come from vtrack.evaluation.mot (trackeval), exactly as in the suite.
 
     .venv/bin/python scripts/eval_oracle.py [--noise 0.05] [--drop 0.1] [--seed 0]
-        [--ignore-unmoved] [--scenes overhead,mast,side,junction] [--seeds 0,1,2]
+        [--ignore-unmoved] [--source appearance|motion] [--scenes overhead,mast,side,junction] [--seeds 0,1,2]
         [--cache DIR] [--json FILE]
 
 Clips are rendered (or reused) in --cache, the cache of the suite, keyed the same way.
@@ -48,8 +51,9 @@ METRICS = ("mota", "idf1", "hota", "id_switches", "false_positives", "misses")
 
 
 def _mot_columns(dets: np.ndarray) -> np.ndarray:
-    """Detections (frame, x, y, w, h) as rows of MOT columns (frame, -1, x, y, w, h)."""
-    return np.column_stack([dets[:, 0], -np.ones(len(dets)), dets[:, 1:5]])
+    """Detections (frame, x, y, w, h) as rows of MOT columns (frame, -1, x, y, w, h, conf 1),
+    as the peers take them."""
+    return np.column_stack([dets[:, 0], -np.ones(len(dets)), dets[:, 1:5], np.ones(len(dets))])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -64,6 +68,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ignore-unmoved", action="store_true",
                     help="score a vehicle's rows before it first moves half a box scale as "
                          "ignore regions (what a motion detector cannot see)")
+    ap.add_argument("--source", choices=("appearance", "motion"), default="appearance",
+                    help="the true boxes as an appearance detector's (whole) or as motion "
+                         "blobs")
     ap.add_argument("--config", help="a TOML config ([tracker] is used)")
     ap.add_argument("--no-peers", action="store_true")
     ap.add_argument("--cache", default="/tmp/vtrack-suite/cache")
@@ -76,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     fps = 25.0   # `vtrack synth`'s default, which the suite renders at
     results = []
     print(f"detections: ground truth, edge noise {args.noise:g} box scales, "
-          f"drop {args.drop:g}" + ("; unmoved vehicles ignored" if args.ignore_unmoved else ""))
+          f"drop {args.drop:g}, as {args.source} boxes" + ("; unmoved vehicles ignored" if args.ignore_unmoved else ""))
     print(f"{'clip':12s}" + "".join(f"{t:>24s}" for t in trackers) + "   (MOTA IDF1 HOTA)")
     for clip in clips:
         src = render(clip, Path(args.cache))
@@ -88,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         scores = {}
         for name in trackers:
             rows = (tracked_rows(Tracker(cfg.tracker, clip.width, clip.height, fps), dets,
-                                 frames, fps)
+                                 frames, fps, whole=args.source == "appearance")
                     if name == "vtrack" else mot_array(peer_rows(name, _mot_columns(dets),
                                                                  frames, fps)))
             s = evaluate_arrays(scored, rows)
@@ -102,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
                 for m in ("mota", "idf1", "hota")) for t in trackers))
     if args.json:
         Path(args.json).write_text(json.dumps({"noise": args.noise, "drop": args.drop,
-                                               "seed": args.seed,
+                                               "seed": args.seed, "source": args.source,
                                                "ignore_unmoved": args.ignore_unmoved,
                                                "results": results}, indent=1))
     return 0

@@ -123,15 +123,18 @@ def hidden_crossings(gt: np.ndarray, lines: Sequence[Sequence[float]]) -> list[l
     return out
 
 
-def tracked_rows(tracker: Any, dets: np.ndarray, frames: int, fps: float) -> np.ndarray:
+def tracked_rows(tracker: Any, dets: np.ndarray, frames: int, fps: float,
+                 whole: bool = False) -> np.ndarray:
     """MOT rows (R, 10), sorted by frame then id, of `tracker` (vtrack's Tracker, or any
     object whose step(frame, t, centres, boxes) returns FrameTracks) run on detections
-    (frame, x, y, w, h) over frames 1..frames at `fps`. A row emitted again for the same
-    (frame, id) replaces the earlier one."""
+    (frame, x, y, w, h) over frames 1..frames at `fps`. `whole`: the detections are given
+    as boxes the appearance model drew (`seen`, tracking/provenance.py), else as motion
+    blobs. A row emitted again for the same (frame, id) replaces the earlier one."""
     rows: dict[tuple[int, int], np.ndarray] = {}
     for n in range(1, frames + 1):
         d = dets[dets[:, 0] == n, 1:5]
-        for r in tracker.step(n, (n - 1) / fps, d[:, :2] + d[:, 2:] / 2, d).rows:
+        extra = {"seen": np.ones(len(d), dtype=bool)} if whole else {}
+        for r in tracker.step(n, (n - 1) / fps, d[:, :2] + d[:, 2:] / 2, d, **extra).rows:
             rows[int(r[0]), int(r[1])] = r[:6]
     return mot_array(np.array([rows[k] for k in sorted(rows)]).reshape(-1, 6))
 

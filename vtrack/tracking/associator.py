@@ -7,10 +7,12 @@ duplicates) and the fragment stage's gap record after this frame.
    marked split), told apart by the gap between them: its motion and, with the detector's
    changed map, whether it is road or body;
 2. gate and assign: Mahalanobis gating on k-d-tree candidates, optimal assignment per
-   connected group (vtrack.tracking.association);
+   connected group (vtrack.tracking.association); a whole box (provenance.py) is measured
+   as the vehicle: its centre, and its sides (those the border does not cut) within the
+   size gate of the track's size and in the cost;
 3. shared blobs (`resolve_shared`): a detection holding the predicted centres of several
    confirmed tracks is a duplicate (the younger tracks are deleted) or a merge (the tracks
-   coast);
+   coast); a whole box (provenance.py) is never a merge;
 4. re-acquisition (`reacquire`): a track left without a detection takes a left-over one
    inside its box.
 """
@@ -22,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.boxes import intersection, overlap_of_smaller, paired_iou
+from vtrack.boxes import intersection, on_border, overlap_of_smaller, paired_iou
+from vtrack.tracking.box_size import BoxSizeFilter
 from vtrack.tracking.association import assign, gated_pairs, points_in_boxes
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.fragments import ChangedShare, FragmentJoiner, GapColumns
@@ -43,8 +46,10 @@ class Association:
     consumed: np.ndarray     # detections that are merged blobs (they start no track)
     split: np.ndarray        # (N,) tracks whose box held several vehicles
     duplicates: np.ndarray   # tracks following the same vehicle as an older track
+    patient: np.ndarray      # (len(duplicates),) ... on a whole box (provenance.py)
     gaps: GapColumns         # the fragment stage's gap record after this frame
     origin: np.ndarray       # (D,) the input detection each of `boxes` is (fragments.py)
+    whole: np.ndarray        # (D,) each of `boxes` is a whole box (provenance.py)
 
 
 class Associator:
@@ -55,57 +60,79 @@ class Associator:
         self.width, self.height = width, height
         self.gate = -2.0 * math.log1p(-cfg.gate_probability)  # chi-square quantile, 2 dof
         self.fragments = FragmentJoiner(cfg, width, height)
+        self.size = BoxSizeFilter.from_config(cfg)
 
     def associate(self, tracks: TrackTable, gaps: GapColumns, t: float, centers: np.ndarray,
-                  boxes: np.ndarray, changed: ChangedShare | None = None) -> Association:
+                  boxes: np.ndarray, changed: ChangedShare | None = None,
+                  whole: np.ndarray | None = None) -> Association:
         """Pair this frame's detections with the predicted tracks; `gaps` is the fragment
         stage's record before this frame; `changed` (boxes (K, 4) -> (K,)) is the share of
-        each box that the detector saw change, when it has one."""
+        each box that the detector saw change, when it has one; `whole` (D,) marks the
+        whole boxes (provenance.py; None: all are blobs)."""
         cfg = self.cfg
         track_boxes = tracks.boxes(self.width, self.height)
-        f = self.fragments.join(tracks, gaps, track_boxes, t, centers, boxes, changed)
+        f = self.fragments.join(tracks, gaps, track_boxes, t, centers, boxes, changed, whole)
         centers, boxes = f.centers, f.boxes
         size, scale = tracks.size, tracks.scale
         sigma = detection_sigma(cfg, scale)
-        ti, di, cost = gated_pairs(
-            tracks.x[:, :2], tracks.P[:, :2, :2], centers, self.gate, cfg.max_gate * scale,
-            lambda trk, det: nested_centre(tracks.x[trk, :2], size[trk], boxes[det],
-                                           sigma[trk, None]),
-            cfg.gate_candidates)
+        cut = on_border(boxes, self.width, self.height).any(axis=2)
+        vehicle = f.whole & ~cut.any(axis=1)   # whole boxes that show the whole vehicle
+
+        def measured(trk: np.ndarray, det: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            z, var = nested_centre(tracks.x[trk, :2], size[trk], boxes[det], sigma[trk, None])
+            own = vehicle[det]
+            z[own] = centers[det[own]]
+            var[own] = sigma[trk[own], None] ** 2
+            return z, var
+
+        ti, di, cost = gated_pairs(tracks.x[:, :2], tracks.P[:, :2, :2], centers, self.gate,
+                                   cfg.max_gate * scale, measured, cfg.gate_candidates)
+        w = f.whole[di]
+        if w.any():   # a whole box's sides against the track's size, in the cost
+            cost = cost.copy()
+            cost[w] += self.size.d2(tracks.s[ti[w]], tracks.Ps[ti[w]], boxes[di[w], 2:],
+                                    cut[di[w]])
+
         # A vehicle's detection overlaps its predicted box (the gate alone, in box scales,
         # would let a coasting track with a large box jump to a neighbour).
         touch = intersection(track_boxes[ti], boxes[di]) > 0
         ti, di, cost = ti[touch], di[touch], cost[touch]
         mt, md = assign(ti, di, cost, len(tracks), len(centers))
-        mt, md, consumed, duplicates = resolve_shared(cfg, tracks, track_boxes, mt, md, boxes)
+        mt, md, consumed, duplicates, patient = resolve_shared(cfg, tracks, track_boxes, mt,
+                                                               md, boxes, f.whole)
         mt, md = reacquire(cfg, tracks, track_boxes, mt, md, consumed, duplicates, centers,
                            boxes)
-        return Association(centers, boxes, mt, md, consumed, f.split, duplicates, f.gaps,
-                           f.origin)
+        return Association(centers, boxes, mt, md, consumed, f.split, duplicates, patient,
+                           f.gaps, f.origin, f.whole)
 
 
 def resolve_shared(cfg: TrackerConfig, tracks: TrackTable, track_boxes: np.ndarray,
-                   mt: np.ndarray, md: np.ndarray, boxes: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                   mt: np.ndarray, md: np.ndarray, boxes: np.ndarray,
+                   whole: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Detections whose box holds the predicted centres of two or more confirmed tracks.
 
     A standing track (lifecycle.py) among moving ones is being passed: it is left out.
     If those tracks' boxes largely overlap (the intersection covers over `duplicate_overlap`
-    of the smaller box), they follow one vehicle: the oldest track takes the detection and
+    of the smaller box; for a whole box, their IoU is over it), they follow one vehicle: the oldest track takes the detection and
     the younger ones are duplicates; but where the oldest's box is under `small_in_blob` of
     the blob and another's is the blob (IoU >= `blob_fit_iou`), the oldest follows a smaller
     vehicle seen over a larger one (a car beside a truck): the larger vehicle's track takes
     the blob and the others coast, none deleted. Otherwise the detection is a merged blob of several vehicles: its
     centroid belongs to none of them, so those tracks coast instead of being pulled toward
-    the middle, and the blob is consumed (it starts no track).
-    Returns the pairs, the consumed detections and the duplicate tracks.
+    the middle, and the blob is consumed (it starts no track). A whole box (`whole`,
+    provenance.py) is one vehicle, never a merge: the assignment's pairs stand.
+    Returns the pairs, the consumed detections, the duplicate tracks and which of those
+    shared a whole box (patient: deleted after `whole_duplicate_seconds`).
     """
     consumed: list[int] = []
     duplicates: list[np.ndarray] = []
+    patient: list[np.ndarray] = []
     conf = tracks.confirmed
     none = np.zeros(0, dtype=int)
     if len(boxes) == 0 or len(conf) < 2:
-        return mt, md, none, none
+        return mt, md, none, none, np.zeros(0, dtype=bool)
+    whole = np.zeros(len(boxes), dtype=bool) if whole is None else whole
     bi, pi = points_in_boxes(tracks.x[conf, :2], boxes, cfg.box_candidates)
     # A track whose centre lies in more than one detection box has a detection of its own.
     alone = np.bincount(pi, minlength=len(conf))[pi] == 1
@@ -113,9 +140,10 @@ def resolve_shared(cfg: TrackerConfig, tracks: TrackTable, track_boxes: np.ndarr
     for d in np.flatnonzero(np.bincount(bi, minlength=len(boxes)) >= 2):
         held = conf[pi[bi == d]]
         # A moving vehicle passes a standing one: the standing track neither takes the
-        # blob nor makes the moving one its duplicate; one moving track takes it.
+        # blob nor makes the moving one its duplicate; one moving track takes it. (Their
+        # whole boxes are their own: the assignment tells them apart.)
         still = tracks.standing[held]
-        if still.any() and not still.all():
+        if still.any() and not still.all() and not whole[d]:
             passed = np.isin(mt, held[still]) & (md == d)
             mt, md = mt[~passed], md[~passed]
             held = held[~still]
@@ -123,22 +151,31 @@ def resolve_shared(cfg: TrackerConfig, tracks: TrackTable, track_boxes: np.ndarr
                 if held[0] not in mt and d not in md:
                     mt, md = np.append(mt, held[0]), np.append(md, d)
                 continue
-        taken = np.isin(mt, held) | (md == d)
-        mt, md = mt[~taken], md[~taken]
         oldest = held[np.argmin(tracks.uid[held])]
         others = held[held != oldest]
-        if np.all(overlap_of_smaller(track_boxes[oldest], track_boxes[others])
-                  > cfg.duplicate_overlap):
+        # tracks on one vehicle: boxes that largely overlap (a blob's tracks), or, on a
+        # whole box, boxes alike (IoU): a whole box over a smaller one is a vehicle in front
+        # of another
+        overlap = (paired_iou(track_boxes[others], track_boxes[oldest][None]) if whole[d]
+                   else overlap_of_smaller(track_boxes[oldest], track_boxes[others]))
+        same = np.all(overlap > cfg.duplicate_overlap)
+        if whole[d] and not same:
+            continue   # vehicles whose whole boxes overlap: the assignment stands
+        taken = np.isin(mt, held) | (md == d)
+        mt, md = mt[~taken], md[~taken]
+        if same:
             fitting = _fitting_track(cfg, track_boxes[held], track_boxes[oldest], boxes[d])
             if fitting is None:
                 mt, md = np.append(mt, oldest), np.append(md, d)
                 duplicates.append(others)
+                patient.append(np.full(len(others), bool(whole[d])))
             else:  # a small vehicle seen over a large one: the large one's blob
                 mt, md = np.append(mt, held[fitting]), np.append(md, d)
         else:
             consumed.append(int(d))
     dup = np.concatenate(duplicates) if duplicates else none
-    return mt, md, np.array(consumed, dtype=int), dup
+    wait = np.concatenate(patient) if patient else np.zeros(0, dtype=bool)
+    return mt, md, np.array(consumed, dtype=int), dup, wait
 
 
 def _fitting_track(cfg: TrackerConfig, held_boxes: np.ndarray, oldest_box: np.ndarray,

@@ -110,13 +110,22 @@ class BoxSizeFilter:
         nu = np.log(np.maximum(sizes, 1.0)) - s[:, :2]
         return nu**2 <= self.gate * (Ps[:, [0, 1], [0, 1]] + self._var(sizes))
 
+    def d2(self, s: np.ndarray, Ps: np.ndarray, sizes: np.ndarray, cut: np.ndarray
+           ) -> np.ndarray:
+        """(K,) squared Mahalanobis distance of detected sides `sizes` (K, 2) from the
+        states (s, Ps), summed over the sides; a side cut by the border (`cut` (K, 2)) that
+        is smaller than predicted is a lower bound and adds nothing."""
+        nu = np.log(np.maximum(sizes, 1.0)) - s[:, :2]
+        d2 = nu**2 / (Ps[:, [0, 1], [0, 1]] + self._var(sizes))
+        return np.where(cut & (nu < 0), 0.0, d2).sum(axis=1)
+
     def px_var(self, s: np.ndarray, Ps: np.ndarray) -> np.ndarray:
         """(K, 2) variance of the box sides in px^2 (first order: (w sigma_ln w)^2)."""
         return np.exp(2 * s[:, :2]) * Ps[:, [0, 1], [0, 1]]
 
     def update(self, tracks: TrackTable, idx: np.ndarray, sizes: np.ndarray,
                cut: np.ndarray, t: float, expected: np.ndarray, spread: np.ndarray,
-               shrunk: np.ndarray) -> np.ndarray:
+               shrunk: np.ndarray, trusted: np.ndarray | None = None) -> np.ndarray:
         """Update the sizes of tracks `idx` with detected sizes (K, 2) at time t; cut (K, 2)
         marks sides on the image border; expected (K, 2) is the box size each track's
         vehicle has at its place (nan: not known) and spread (K, 2) the relative std of its
@@ -129,6 +138,8 @@ class BoxSizeFilter:
         var = self._var(sizes)
         nu = z - s[:, :2]
         whole = self.in_gate(s, Ps, sizes) & ~cut
+        if trusted is not None:   # sides of whole boxes: measurements, wherever they lie
+            whole |= trusted
         # The vehicle's own size at this place (nan: not known): a detected side of that
         # size, within the scatter of the vehicle's own detections and a pixel of outline,
         # is the whole vehicle's even where the estimate disagrees (the estimate is what is

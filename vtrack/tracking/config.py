@@ -144,6 +144,10 @@ class TrackerConfig:
         "a duplicate track is deleted once it has been one on every frame for this long, s "
         "(0: at once); two vehicles whose boxes overlap share one detection only while the "
         "other's is missing, two tracks on one vehicle share it on every frame"))
+    whole_duplicate_seconds: float = field(default=0.1, metadata=_h(
+        "`duplicate_seconds` for a track whose shared detection is a whole box (one the "
+        "appearance model drew: provenance.py): two vehicles whose whole boxes overlap share "
+        "one only while the other's box is missing, s"))
     small_in_blob: float = field(default=0.25, metadata=_h(
         "the oldest of such tracks whose box covers under this share of the shared blob "
         "follows a smaller vehicle seen over a larger one (a car beside a truck)"))
@@ -196,6 +200,7 @@ class TrackerConfig:
         if not 0 < self.gap_changed_share <= 1:
             raise ValueError("tracker.gap_changed_share must be in (0, 1]")
         for name in ("confirm_motion", "edge_margin", "size_grow_seconds", "stand_speed",
-                     "split_hold_seconds", "duplicate_seconds", "coast_accel_rate"):
+                     "split_hold_seconds", "duplicate_seconds", "whole_duplicate_seconds",
+                     "coast_accel_rate"):
             if getattr(self, name) < 0:
                 raise ValueError(f"tracker.{name} must be >= 0")

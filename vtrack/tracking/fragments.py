@@ -68,6 +68,7 @@ class Fragments:
     split: np.ndarray      # (N,) tracks whose box held several vehicles
     gaps: GapColumns       # the gap record after this frame
     origin: np.ndarray     # (D',) the input detection each row is (a joined one: its first)
+    whole: np.ndarray      # (D',) the row is a whole box (provenance.py): never joined
 
 
 class FragmentJoiner:
@@ -79,19 +80,23 @@ class FragmentJoiner:
         self.size_gate = BoxSizeFilter.from_config(cfg)
 
     def join(self, tracks: TrackTable, gaps: GapColumns, track_boxes: np.ndarray, t: float,
-             centers: np.ndarray, boxes: np.ndarray, changed: ChangedShare | None
-             ) -> Fragments:
+             centers: np.ndarray, boxes: np.ndarray, changed: ChangedShare | None,
+             whole: np.ndarray | None = None) -> Fragments:
         """The detections with the pieces of each track's vehicle joined, the tracks whose
         box held several vehicles and the gap record after this frame (`gaps` is not
-        changed)."""
+        changed). Only motion-only detections are pieces: `whole` (D,) marks whole boxes
+        (provenance.py), which are vehicles and never joined."""
         cfg = self.cfg
         gaps = gaps.copy()
         split = np.zeros(len(tracks), dtype=bool)
         conf = tracks.confirmed
         held = np.zeros(len(tracks), dtype=bool)
         origin = np.arange(len(centers))
-        if len(conf) and len(centers) >= 2:
-            bi, di = points_in_boxes(centers, track_boxes[conf], cfg.box_candidates)
+        whole = np.zeros(len(centers), dtype=bool) if whole is None else whole
+        blobs = np.flatnonzero(~whole)
+        if len(conf) and len(blobs) >= 2:
+            bi, di = points_in_boxes(centers[blobs], track_boxes[conf], cfg.box_candidates)
+            di = blobs[di]
             claims = np.bincount(di, minlength=len(centers))
             ok = claims[di] == 1
             bi, di = bi[ok], di[ok]
@@ -117,7 +122,7 @@ class FragmentJoiner:
         gaps.gap_seen[held] = t
         holding = gaps.gap_road & (t - gaps.gap_seen <= cfg.split_hold_seconds + 1e-9)
         gaps.gap_t[(~held & ~holding) | split] = np.nan
-        return Fragments(centers, boxes, split, gaps, origin)
+        return Fragments(centers, boxes, split, gaps, origin, whole[origin])
 
     def _one_is_whole(self, tracks: TrackTable, track: int, predicted: np.ndarray,
                       pieces: np.ndarray) -> bool:

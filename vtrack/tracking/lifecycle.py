@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from vtrack.boxes import clip, edges, from_centre
+from vtrack.boxes import clip, edges, from_centre, paired_iou
 from vtrack.tracking.association import points_in_boxes
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.columns import Columns
@@ -60,16 +60,25 @@ class Initiator:
         self.next_uid = 0
         self.box_candidates = box_candidates
 
-    def select(self, centers: np.ndarray, used: np.ndarray, confirmed_boxes: np.ndarray
-               ) -> np.ndarray:
+    def select(self, centers: np.ndarray, used: np.ndarray, confirmed_boxes: np.ndarray,
+               boxes: np.ndarray | None = None, whole: np.ndarray | None = None,
+               same_iou: float = 0.5) -> np.ndarray:
         """The detections not `used` whose centre no confirmed track's box covers (a
-        fragment of a tracked vehicle is not a new vehicle)."""
+        fragment of a tracked vehicle is not a new vehicle). A whole box (`whole`,
+        provenance.py; `boxes` (D, 4) the detections' boxes) is a vehicle wherever its centre
+        lies: it is left out only where it is a confirmed track's box (IoU >= `same_iou`)."""
         free = np.ones(len(centers), dtype=bool)
         free[used] = False
         if len(confirmed_boxes) and free.any():
             idx = np.flatnonzero(free)
-            _, covered = points_in_boxes(centers[idx], confirmed_boxes, self.box_candidates)
-            free[idx[covered]] = False
+            bi, covered = points_in_boxes(centers[idx], confirmed_boxes, self.box_candidates)
+            if whole is not None and boxes is not None:
+                k = idx[covered]
+                # a blob in a box, or a whole box that is one of the boxes it lies in
+                inner = ~whole[k] | (paired_iou(boxes[k], confirmed_boxes[bi]) >= same_iou)
+                free[k[inner]] = False
+            else:
+                free[idx[covered]] = False
         return np.flatnonzero(free)
 
     def new(self, boxes: np.ndarray) -> LifeColumns:
@@ -110,11 +119,12 @@ class Deleter:
         self.cfg = cfg
         self.width, self.height = width, height
 
-    def fate(self, tracks: TrackTable, t: float, duplicates: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray]:
+    def fate(self, tracks: TrackTable, t: float, duplicates: np.ndarray,
+             patient: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(inside, alive) (N,) each: whether part of each predicted box is still in the
         image, and whether the track is within its coasting limit and not one of the
-        `duplicates` (indices) for `duplicate_seconds` in a row (recorded in `dup_t`). A
+        `duplicates` (indices) for `duplicate_seconds` in a row (recorded in `dup_t`;
+        `whole_duplicate_seconds` for those `patient` marks: they shared a whole box). A
         track is kept where both hold."""
         cfg = self.cfg
         m = cfg.edge_margin * tracks.scale[:, None] + tracks.size / 2
@@ -129,8 +139,11 @@ class Deleter:
         alive = lost_for <= limit + 1e-9
         shared = np.zeros(len(tracks), dtype=bool)
         shared[duplicates] = True
+        wait = np.full(len(tracks), cfg.duplicate_seconds)
+        if patient is not None:
+            wait[duplicates[patient]] = cfg.whole_duplicate_seconds
         tracks.dup_t = np.where(shared, np.fmin(tracks.dup_t, t), np.nan)
-        alive[shared & (t - tracks.dup_t >= cfg.duplicate_seconds - 1e-9)] = False
+        alive[shared & (t - tracks.dup_t >= wait - 1e-9)] = False
         return inside, alive
 
     def _leaving(self, tracks: TrackTable) -> np.ndarray:

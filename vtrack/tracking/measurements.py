@@ -272,7 +272,13 @@ def nested_centre(pred: np.ndarray, size: np.ndarray, boxes: np.ndarray, sigma: 
     return z, sigma**2 + (hi - lo) ** 2 / 12.0
 
 
-def border_cut(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
+def border_cut(boxes: np.ndarray, width: int, height: int, tol: np.ndarray | None = None
+               ) -> np.ndarray:
     """(K, 2, 2): which edges (axis x low/high) of boxes (x, y, w, h) lie on the image
-    border (within half a pixel), where the vehicle may go on beyond the picture."""
-    return on_border(boxes, width, height)
+    border (within half a pixel, or within `tol` (K,) px of it), where the vehicle may go on
+    beyond the picture."""
+    if tol is None:
+        return on_border(boxes, width, height)
+    lo, hi = boxes[:, :2], boxes[:, :2] + boxes[:, 2:]
+    t = np.maximum(tol, 0.5)[:, None]
+    return np.stack([lo <= t, hi >= np.array([width, height]) - t], axis=2)

@@ -9,8 +9,10 @@ It holds the box size filter (box_size.py) and the scene's scale field (scale_fi
    the scale field; not from an anchored view), then this detection joins that memory
    (`remember_size`) unless cut by the image border or anchored;
 3. a receding vehicle detected centred inside its predicted box (`shrunk`) shows the whole
-   vehicle: its size starts again from it; with `shrink_unexplained`, so does any smaller
-   detection that nothing shows to be a partial view (`_unexplained`);
+   vehicle: its size starts again from it; so does a whole box (one the appearance model
+   drew, provenance.py), which is never an anchored partial view either; with
+   `shrink_unexplained`, so does any smaller detection that nothing shows to be a partial
+   view (`_unexplained`);
 4. the size filter's gated update with those three (BoxSizeFilter.update), which returns
    the sides that showed the whole vehicle;
 5. a whole detection of a confirmed track that overlaps no other track's box teaches the
@@ -33,6 +35,7 @@ from vtrack.tracking.box_size import (OWN, BoxSizeFilter, anchored, own_size,
 from vtrack.tracking.columns import Columns, warp_scale
 from vtrack.tracking.config import TrackerConfig
 from vtrack.tracking.measurements import border_cut, detection_sigma, shrunk
+from vtrack.tracking.provenance import near_border
 from vtrack.tracking.scale_field import ScaleField
 
 if TYPE_CHECKING:
@@ -115,12 +118,14 @@ class Sizes:
         return tracks.size[idx] * (self.growth(tracks, idx)[:, None] + tracks.s[idx, 2:])
 
     def update(self, tracks: TrackTable, idx: np.ndarray, boxes: np.ndarray, t: float,
-               split: np.ndarray) -> SizeUpdate:
+               split: np.ndarray, whole_box: np.ndarray | None = None) -> SizeUpdate:
         """Update the sizes of tracks idx with their detected boxes (K, 4) at time t; split
-        (K,) marks tracks whose box held several vehicles (module docstring, steps 1-6)."""
+        (K,) marks tracks whose box held several vehicles; whole_box (K,) the boxes the
+        appearance model drew (provenance.py; None: none) (module docstring, steps 1-6)."""
         cfg = self.cfg
         size = tracks.size[idx]
         size_var = self.filter.px_var(tracks.s[idx], tracks.Ps[idx])
+        whole_box = np.zeros(len(idx), dtype=bool) if whole_box is None else whole_box
         edges_cut = border_cut(boxes, self.width, self.height)
         cut = edges_cut.any(axis=2)
         if len(idx) == 0:
@@ -128,7 +133,9 @@ class Sizes:
             return SizeUpdate(empty, np.zeros(0, dtype=bool), size, size_var, edges_cut)
         expected = spread = np.full((len(idx), 2), np.nan)
         rates = self.rates(tracks, idx)
-        partial = anchored(tracks, idx, boxes, t, rates)                           # 1
+        # a whole box (provenance.py) away from the border is the whole vehicle
+        trusted = whole_box & ~near_border(cfg, boxes, self.width, self.height)
+        partial = anchored(tracks, idx, boxes, t, rates) & ~trusted               # 1
         if cfg.own_size:                                                           # 2
             expected, spread = own_size(tracks.own[idx], self.field.k(tracks.x[idx, :2]))
             expected[partial] = np.nan
@@ -139,8 +146,8 @@ class Sizes:
         # from the detection.                                                        3
         sigma = detection_sigma(cfg, np.sqrt(size.prod(axis=1)))[:, None]
         receding = np.all(rates < 0, axis=1)
-        smaller = ((shrunk(tracks.x[idx, :2], size, boxes, sigma) & receding & ~partial)
-                   [:, None] & ~cut)
+        smaller = ((shrunk(tracks.x[idx, :2], size, boxes, sigma) & receding & ~partial
+                    | trusted)[:, None] & ~cut)
         if cfg.shrink_unexplained:
             smaller |= self._unexplained(tracks, idx, boxes, partial)[:, None] & ~cut
         # A whole side is never a border-cut one (box_size.py), so `shows_whole` has no cut.

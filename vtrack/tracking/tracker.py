@@ -35,6 +35,7 @@ from vtrack.tracking.filter_bank import FilterBank
 from vtrack.tracking.fragments import GapColumns
 from vtrack.tracking.lifecycle import Confirmer, Deleter, Initiator, record_hits
 from vtrack.tracking.measurements import CentreMeasurement, HistoryColumns, detection_sigma
+from vtrack.tracking.provenance import whole_boxes
 from vtrack.tracking.reporter import ON_COURSE_IOU, ROW_COLUMNS, RowReporter
 from vtrack.tracking.sizes import Sizes
 from vtrack.tracking.table import TrackTable
@@ -94,11 +95,11 @@ class Tracker:
         return self.reporter.MAX_PENDING + 1
 
     def step(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
-             motion: np.ndarray | None = None, changed: ChangedShare | None = None
-             ) -> FrameTracks:
+             motion: np.ndarray | None = None, changed: ChangedShare | None = None,
+             seen: np.ndarray | None = None) -> FrameTracks:
         """predict, then update (see those)."""
         self.predict(t, motion)
-        return self.update(frame, t, centers, boxes, changed)
+        return self.update(frame, t, centers, boxes, changed, seen)
 
     def predict(self, t: float, motion: np.ndarray | None = None) -> np.ndarray:
         """Advance all tracks to time t (s); `motion` (2, 3) is the camera's, mapping the
@@ -127,32 +128,35 @@ class Tracker:
         tracks predicted to its time t. `changed`, when the detector has one, gives the share
         of any box (K, 4) that it saw change (vision/changed.py): the associator reads the
         gap between two pieces of a blob with it. `seen` (D,) marks the boxes an appearance
-        model drew (a vehicle by its looks: lifecycle.Confirmer)."""
+        model drew: whole vehicles, which every role treats as whole (provenance.py)."""
         centers = np.asarray(centers, dtype=float).reshape(-1, 2)
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
+        whole_in = whole_boxes(seen, len(boxes))
         tracks, W, H = self.tracks, self.width, self.height
         # associate: which detection updates which track (decisions only)
         a = self.associator.associate(tracks, self.gaps, t, centers, boxes,
-                                      changed if self.cfg.gap_labels else None)
+                                      changed if self.cfg.gap_labels else None,
+                                      whole_in if whole_in.any() else None)
         self.gaps = a.gaps
         predicted = tracks.boxes(W, H)[a.tracks]
         prior_x, prior_P = tracks.x.copy(), tracks.P.copy()
         # update sizes, measure centres, update centres (the tracks detected)
-        innov, whole = self._assimilate(a.tracks, a.boxes[a.detections], t, a.split[a.tracks])
+        innov, whole = self._assimilate(a.tracks, a.boxes[a.detections], t, a.split[a.tracks],
+                                        a.whole[a.detections])
         # initiate: tentative tracks on the detections no track explains, assimilated alike
         started = self.initiator.select(a.centers, np.concatenate([a.detections, a.consumed]),
-                                        tracks.boxes(W, H)[tracks.id > 0])
+                                        tracks.boxes(W, H)[tracks.id > 0], a.boxes, a.whole,
+                                        self.cfg.blob_fit_iou)
         new = self._start(t, a.centers[started], a.boxes[started])
-        innov_new, _ = self._assimilate(new, a.boxes[started], t, np.zeros(len(new), bool))
+        innov_new, _ = self._assimilate(new, a.boxes[started], t, np.zeros(len(new), bool),
+                                        a.whole[started])
         hit = np.zeros(len(tracks), dtype=bool)
         hit[a.tracks] = hit[new] = True
-        if seen is not None and len(a.origin):
-            by_app = np.asarray(seen, dtype=bool)[a.origin]
-            tracks.seen[a.tracks[by_app[a.detections]]] = True
-            tracks.seen[new[by_app[started]]] = True
+        tracks.seen[a.tracks[a.whole[a.detections]]] = True
+        tracks.seen[new[a.whole[started]]] = True
         record_hits(tracks, hit, self.confirmer.window, self.cfg.stand_speed)
         # delete (decide), confirm
-        inside, alive = self.deleter.fate(tracks, t, a.duplicates)
+        inside, alive = self.deleter.fate(tracks, t, a.duplicates, a.patient)
         self.confirmer.confirm(tracks, hit, inside & alive)
         # report
         filtered = tracks.boxes(W, H)
@@ -194,16 +198,16 @@ class Tracker:
                            innovations=nis[conf], rows=rows, detection_of=det_of[conf],
                            size_rates=self.sizes.rates(tracks, conf))
 
-    def _assimilate(self, idx: np.ndarray, boxes: np.ndarray, t: float, split: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:
+    def _assimilate(self, idx: np.ndarray, boxes: np.ndarray, t: float, split: np.ndarray,
+                    whole_box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Update tracks idx with their detected boxes (K, 4) at time t: the size role first
-        (sizes.py; split (K,) marks tracks whose box held several vehicles), then the centre
-        measured from what it decided the box showed (measurements.py, seed 001 eqs. 24-26)
-        and the centre filters' update. Returns the NIS (K,) and whether each detection
-        showed the whole vehicle."""
+        (sizes.py; split (K,) marks tracks whose box held several vehicles, whole_box (K,)
+        the boxes the appearance model drew), then the centre measured from what it decided
+        the box showed (measurements.py, seed 001 eqs. 24-26) and the centre filters'
+        update. Returns the NIS (K,) and whether each detection showed the whole vehicle."""
         if len(idx) == 0:
             return np.zeros(0), np.zeros(0, dtype=bool)
-        sizes = self.sizes.update(self.tracks, idx, boxes, t, split)
+        sizes = self.sizes.update(self.tracks, idx, boxes, t, split, whole_box)
         z, Hm, R, mask = self.centres.measure(self.tracks, idx, boxes, t, sizes)
         return self.bank.update(self.tracks, idx, z, Hm, R, mask), sizes.shows_whole
 
