@@ -236,9 +236,7 @@ def renew(riders: Fused, blobs: np.ndarray, areas: np.ndarray, app: AppearanceBo
     if app.window is not None:
         app = app.take(too_small(app.boxes, app.whole))
     kept = follow(riders.take(~refreshed(riders, app)), blobs, areas)
-    if len(kept.boxes) > np.count_nonzero(kept.source == MOTION):
-        held = kept.riders().boxes
-        app = app.take(~links(held, app.boxes).any(axis=0))
-    free, free_areas = kept.motion()
-    new = fuse(free, free_areas, app, alone_score)
-    return _joined(*new.motion(), new.riders(), kept.riders())
+    held = kept.riders()
+    app = app.take(~links(held.boxes, app.boxes).any(axis=0))
+    new = fuse(*kept.motion(), app, alone_score)
+    return _joined(*new.motion(), new.riders(), held)
