@@ -1,8 +1,8 @@
 """Wall time of the seed experiments with the Monte Carlo runs stepped together (the harness,
-vtrack.estimation.montecarlo) against one run at a time (runs_one_at_a_time: the per-run
-loop, each run a one-track filter of the same code), measured in the same process; and the
-cost of one update per run of each filter kind, a stack of runs against a loop over one-track
-filters.
+vtrack.estimation.montecarlo, and the INS experiment's batched filter) against one run at a
+time (run(runs, seed, batch=False): the per-run loop, each run a one-track filter of the same
+code), measured in the same process; and the cost of one update per run of each filter kind,
+a stack of runs against a loop over one-track filters.
 
     .venv/bin/python scripts/bench_experiments.py [--names bearings-2 ...] [--runs 100]
         [--loop-runs N] [--seed 0] [--no-default] [--kinds ekf,iekf,...]
@@ -27,7 +27,6 @@ import time
 
 import numpy as np
 
-from vtrack.estimation.montecarlo import runs_one_at_a_time
 from vtrack.experiments import load_all
 
 UPDATE_KINDS = ("ekf", "iekf", "ukf", "ckf", "iplf", "srukf", "crukf", "ankf1", "ankf2",
@@ -49,8 +48,7 @@ def experiment_times(name: str, runs: int, seed: int, loop_runs: int | None
     run = load_all()[name].run
     stacked = _timed(run, runs, seed)
     n_loop = runs if loop_runs is None else min(runs, loop_runs)
-    with runs_one_at_a_time():
-        loop = _timed(run, n_loop, seed)
+    loop = _timed(lambda: run(n_loop, seed, batch=False))
     return stacked, loop, n_loop
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from vtrack.estimation.bounds import chi2_band
+from vtrack.estimation.linalg import NotPositiveDefiniteError
 from vtrack.estimation.models import Bearings, WienerVelocity, position_measurement
 from vtrack.estimation.montecarlo import (
     StepError,
@@ -14,7 +15,6 @@ from vtrack.estimation.montecarlo import (
     nis_consistency,
     run_rmse,
     run_sequence,
-    runs_one_at_a_time,
     squared_error,
 )
 from vtrack.filter_kinds import make_filter
@@ -154,12 +154,43 @@ def test_a_failing_run_of_a_stack_fails_alone():
                                    rtol=1e-9, atol=1e-12)
 
 
-def test_runs_one_at_a_time_gives_the_stacked_numbers():
+def test_runs_one_at_a_time_gives_the_stacked_numbers(capsys):
+    """batch=False (asked for: no warning) steps each run alone, to the stacked numbers."""
     Z = _runs(R=3)
     stacked = monte_carlo("iplf", _stack_of("iplf"), Z, 0.01)
-    with runs_one_at_a_time():
-        alone = monte_carlo("iplf", _stack_of("iplf"), Z, 0.01)
+    alone = monte_carlo("iplf", _stack_of("iplf"), Z, 0.01, batch=False)
     np.testing.assert_allclose(stacked.x, alone.x, rtol=1e-9, atol=1e-12)
+    assert capsys.readouterr().err == ""
+
+
+def test_a_failed_stack_is_reported(capsys):
+    """When a stack fails, its runs are stepped again one at a time (here they all succeed
+    alone) and a warning on stderr says so, with the kind, the number of runs and why: a
+    researcher sees why the experiment is slow."""
+    Z = _runs(R=5)                      # stacks: runs 0, 2, 3, 4 and run 1 alone
+
+    def fails_as_a_stack(filt, k):
+        if k == 5 and filt.x.ndim == 2:
+            raise NotPositiveDefiniteError("S is not positive definite")
+
+    run = monte_carlo("ekf", _stack_of("ekf"), Z, 0.01, before_step=fails_as_a_stack)
+    assert not run.failed.any()
+    assert capsys.readouterr().err == (
+        "warning: ekf: 4 runs stepped one at a time, not as one stack (the stack failed at "
+        "step 5: S is not positive definite)\n")
+    for r in (0, 2):
+        np.testing.assert_array_equal(run.x[r], run_sequence(_filter(), Z[r], 0.01).x)
+
+
+def test_a_factory_without_stacks_is_reported(capsys):
+    """A factory that builds one-track filters only (it ignores the runs it is given) is
+    stepped one run at a time, and stderr says so once per stack (runs 0 and 2; run 1
+    misses other cells and is a stack of one)."""
+    Z = _runs(R=3)
+    run = monte_carlo("ekf", lambda r: _filter(), Z, 0.01)
+    assert not run.failed.any()
+    assert capsys.readouterr().err == ("warning: ekf: 2 runs stepped one at a time, not as one "
+                                       "stack (the factory builds no stack of runs)\n")
 
 
 @pytest.mark.parametrize("kind", ["iekf", "iplf"])

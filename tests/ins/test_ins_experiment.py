@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from record_golden import assert_unchanged
+from tolerance import json_differences
 from vtrack.experiments import ins, load_all
 
 
@@ -41,6 +42,13 @@ def test_schema_and_same_seed_same_json(short):
     assert set(cases["nine-state"]["results"]) == {"mag", "no-mag"}
     assert cases["nine-state"]["results"]["mag"]["anees_dof"] == 9
     assert "outages" in cases["outage"]["results"]["mag"]
+
+
+def test_one_run_at_a_time_gives_the_batched_json(short):
+    """run(..., batch=False) (the benchmarks' per-run loop: every run and label a batch of
+    one) gives the batched JSON within the golden tests' tolerance."""
+    a, b = ins.run(2, 5).summary, ins.run(2, 5, batch=False).summary
+    assert not json_differences(a, b)
 
 
 def test_example_run_has_what_the_plot_needs(short):

@@ -1,12 +1,13 @@
 """The GPS-aided INS error-state filter (seed 001 eqs. 31-37): measurement Jacobians, GPS
-outages (error growth, covariance coverage, reconvergence) and magnetometer aiding."""
+outages (error growth, covariance coverage, reconvergence), magnetometer aiding, and the
+batch of runs (equal to each run stepped alone) with the experiment's recorder."""
 
 import numpy as np
 import pytest
 
-from vtrack.estimation.bounds import chi2_band
-from vtrack.ins.strapdown import GRAVITY_N, NavState
-from vtrack.ins.error_state_filter import InsFilterConfig, _attitude_rows
+from vtrack.estimation.bounds import chi2_band, nees
+from vtrack.ins.strapdown import GRAVITY_N, NavState, attitude_error
+from vtrack.ins.error_state_filter import InsFilterConfig, _attitude_rows, run_ins_filter
 from vtrack.ins.so3 import euler_to_dcm, exp_so3
 from vtrack.experiments import ins
 from vtrack.sim.imu import ImuSpec
@@ -126,3 +127,58 @@ def test_nine_state_paper_filter_tracks_gps():
                       batch)
     assert r9["rmse"] < 1.2 * r18["rmse"]
     assert r9["anees_dof"] == 9 and r18["anees_dof"] == 18
+
+
+def test_batched_filter_equals_each_run_stepped_alone():
+    """run_variant steps every run and label of a chunk as one batch of the filter (states
+    (B, n), covariances (B, n, n)); stacked=False steps each run and label alone, a batch of
+    one through the same code. Every recorded series agrees within the golden tests'
+    tolerance (they are the same numbers: a run's arithmetic does not see the batch)."""
+    scn = ins.Scenario(duration=20.0, outages=((8.0, 12.0),))
+    batch = ins.simulate(scn, 3, 7)
+    for n, labels in ((18, ("mag", "no-mag", "mag-paper")), (9, ("mag", "no-mag"))):
+        cfg = ins.filter_config(scn, n)
+        together = ins.run_variant(batch, scn, cfg, labels, example_every=8)
+        alone = ins.run_variant(batch, scn, cfg, labels, example_every=8, stacked=False)
+        for label in labels:
+            a, b = together[label], alone[label]
+            for name in ("pos_err", "pos_sig", "vel_err", "att_err", "yaw_err", "yaw_sig",
+                         "nees_pos", "nees_full"):
+                np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-9,
+                                           atol=0, err_msg=f"{n} {label} {name}")
+            for name in ("nav", "P"):
+                np.testing.assert_allclose(a.example[name], b.example[name], rtol=1e-9)
+
+
+def test_records_are_the_filter_states_at_every_epoch():
+    """The experiment's recorder (buffered over blocks of epochs, reduced to errors when a
+    block is full) holds, at every epoch, the error of the solution the filter handed it:
+    checked against a plain per-epoch recorder over more epochs than one block."""
+    scn = ins.Scenario(duration=10.0)
+    batch = ins.simulate(scn, 2, 3)
+    cfg = ins.filter_config(scn, 15)
+    K = batch.accel.shape[1]
+    assert K > 1.5 * ins._Records.BLOCK
+    got = ins.run_variant(batch, scn, cfg, ("mag",))["mag"]
+    t = batch.traj
+    rows = np.arange(2)
+    nav0 = NavState(t.p[0] + batch.init_err[:, 0:3], t.v[0] + batch.init_err[:, 3:6],
+                    exp_so3(-batch.init_err[:, 6:9]) @ t.R[0], *[np.zeros((2, 3))] * 3)
+    P0 = cfg.initial_covariance(scn.init_pos, scn.init_vel, np.radians(scn.init_tilt_deg),
+                                np.radians(scn.init_yaw_deg))
+    seen = {"p": np.zeros((2, K, 3)), "sig": np.zeros((2, K, 3)), "nees": []}
+
+    def plain(k, nav, P):
+        seen["p"][:, k] = nav.p
+        seen["sig"][:, k] = np.sqrt(np.diagonal(P[:, 0:3, 0:3], axis1=-2, axis2=-1))
+        if k % 4 == 0:
+            e = np.concatenate([nav.p - t.p[k], nav.v - t.v[k], attitude_error(nav.R, t.R[k]),
+                                batch.ba[:, k] - nav.ba, batch.bg[:, k] - nav.bg], axis=1)
+            seen["nees"].append(nees(e, P))
+
+    run_ins_filter(cfg, nav0, P0[None].repeat(2, axis=0), batch.accel[rows], batch.gyro[rows],
+                   batch.mag[rows], batch.gps_index, batch.gps_pos[rows], batch.gps_vel[rows],
+                   batch.gps_valid, np.ones(2, bool), plain)
+    np.testing.assert_array_equal(got.pos_err, (seen["p"] - t.p).astype(np.float32))
+    np.testing.assert_array_equal(got.pos_sig, seen["sig"].astype(np.float32))
+    np.testing.assert_allclose(got.nees_full, np.array(seen["nees"]).T, rtol=1e-9)

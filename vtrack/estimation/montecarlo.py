@@ -12,8 +12,8 @@ band, NIS, and paired differences with standard errors (bounds.paired_difference
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator, Mapping
+import sys
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -146,21 +146,6 @@ Factory = Callable[[object], GaussianFilter]
 that stack, x (len, n)), or with one run's int index (a one-track filter)."""
 
 
-_one_at_a_time = False
-
-
-@contextlib.contextmanager
-def runs_one_at_a_time() -> Iterator[None]:
-    """Within this context monte_carlo steps every run alone (a one-track filter): the
-    per-run loop that stepping the runs together replaces, for benchmarks and checks."""
-    global _one_at_a_time
-    saved, _one_at_a_time = _one_at_a_time, True
-    try:
-        yield
-    finally:
-        _one_at_a_time = saved
-
-
 def missing_patterns(Z: np.ndarray) -> list[np.ndarray]:
     """The runs of Z (R, K, m) grouped by which cells they miss (NaN) over the whole
     sequence: runs of one group miss the same cells at every step and can be stepped as one
@@ -185,14 +170,17 @@ def monte_carlo(kind: str, factory: Factory, Z: np.ndarray, dt: float | np.ndarr
     filter built for one track, `factory(r)`. A run whose filter cannot be built or
     fails is marked failed and left NaN; the others are unaffected (paired comparisons stay
     paired): when a stack fails, its runs are stepped again one at a time to find the
-    failing ones. Under runs_one_at_a_time() every run is stepped alone."""
+    failing ones. Whenever batch=True steps runs one at a time, a warning on stderr says
+    which kind, how many runs and why (it is the slow path)."""
     outs: list[FilterOutput | None] = [None] * len(Z)
     sizes: set[int] = set()
-    together = batch and not _one_at_a_time
-    for runs in missing_patterns(Z) if together else [[r] for r in range(len(Z))]:
-        stacked = _run_stack(factory, np.asarray(runs), Z, dt, U, record, before_step) \
-            if batch and len(runs) > 1 else None
+    for runs in missing_patterns(Z) if batch else [[r] for r in range(len(Z))]:
+        stacked, why = _run_stack(factory, np.asarray(runs), Z, dt, U, record, before_step) \
+            if batch and len(runs) > 1 else (None, None)
         if stacked is None:
+            if why is not None:
+                _warn(f"{kind}: {len(runs)} runs stepped one at a time, not as one stack "
+                      f"({why})")
             stacked = []
             for r in runs:
                 out, n = _run_one(factory, int(r), Z, dt, U, record, before_step)
@@ -229,22 +217,27 @@ _FAILURES = (EstimationError, np.linalg.LinAlgError, ArithmeticError)
 def _run_stack(factory: Factory, runs: np.ndarray, Z: np.ndarray, dt: float | np.ndarray,
                U: np.ndarray | None, record: Mapping[str, Recorder] | None,
                before_step: Callable[[GaussianFilter, int], None] | None
-               ) -> list[FilterOutput] | None:
-    """The outputs of runs `runs` stepped as one stack, one per run; None if the factory
-    builds no stack of them (a kind without `batched`, a factory that ignores the runs) or
-    the stack failed."""
+               ) -> tuple[list[FilterOutput] | None, str | None]:
+    """The outputs of runs `runs` stepped as one stack, one per run, or (None, why not):
+    the factory builds no stack of them (a kind without `batched`, a factory that ignores
+    the runs) or the stack failed."""
     try:
         filt = factory(runs)
-    except (ValueError, TypeError, IndexError, *_FAILURES):
-        return None                 # stepped one run at a time, which reports real errors
+    except (ValueError, TypeError, IndexError, *_FAILURES) as exc:
+        # stepped one run at a time, which reports real errors
+        return None, f"the stack could not be built: {_cause(exc)}"
     if not filt.batched or filt.x.shape[:-1] != (len(runs),):
-        return None
+        return None, "the factory builds no stack of runs"
     try:
         out = run_sequence(filt, Z[runs], dt, None if U is None else U[runs], record,
                            before_step)
-    except _FAILURES:
-        return None
-    return [_run_of(out, i) for i in range(len(runs))]
+    except _FAILURES as exc:
+        return None, f"the stack failed at {_cause(exc)}"
+    return [_run_of(out, i) for i in range(len(runs))], None
+
+
+def _warn(message: str) -> None:
+    print(f"warning: {message}", file=sys.stderr)
 
 
 def _run_one(factory: Factory, r: int, Z: np.ndarray, dt: float | np.ndarray,

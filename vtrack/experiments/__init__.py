@@ -1,7 +1,9 @@
 """Seed-paper experiments, registered by name for `vtrack experiment NAME`.
 
 Each experiment module calls `register(name, summary)` on a function
-`run(runs: int, seed: int) -> ExperimentResult`. The result's `summary` is the JSON of
+`run(runs: int, seed: int, batch: bool = True) -> ExperimentResult`; batch=False steps every
+Monte Carlo run alone (the per-run loop that stepping the runs together replaces, for
+benchmarks and checks). The result's `summary` is the JSON of
 INTERFACE.md (`results` keyed by filter kind, further cases under `cases`); `example` holds one
 Monte Carlo run's time series for plots and rerun.
 """
@@ -38,7 +40,7 @@ class ExperimentResult:
     example: ExampleRun | None = None
 
 
-Runner = Callable[[int, int], ExperimentResult]
+Runner = Callable[..., ExperimentResult]   # run(runs, seed, batch=True)
 
 
 @dataclass(frozen=True)

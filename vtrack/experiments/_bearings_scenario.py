@@ -348,9 +348,9 @@ class CaseRun:
 
 
 def simulate(scenario: Scenario, seeds: list[int],
-             filters: dict[str, dict[str, object]]) -> CaseRun:
+             filters: dict[str, dict[str, object]], batch: bool = True) -> CaseRun:
     """Truth, measurements, the PCRLB and every filter of `filters` ({kind: options}) on the
-    same runs (paired)."""
+    same runs (paired); batch as in run_filter."""
     if scenario.truth == "turn":
         truth = turning_truth(seeds)
         x0s = np.broadcast_to(M0, (len(seeds), 4)).copy()
@@ -365,8 +365,8 @@ def simulate(scenario: Scenario, seeds: list[int],
                                scenario.dt, scenario.prior_cov)
     motion = WienerVelocity(scenario.q_filter)
     meas = Bearings(scenario.sensors, scenario.sigma_filter)
-    runs = {kind: run_filter(kind, motion, meas, Z, x0s, scenario.prior_cov, dt=scenario.dt,
-                             **opts)
+    runs = {kind: run_filter(kind, motion, meas, Z, x0s, scenario.prior_cov, batch,
+                             dt=scenario.dt, **opts)
             for kind, opts in filters.items()}
     return CaseRun(scenario, seeds, truth, Z, x0s, bound_var, runs, dict(filters))
 

@@ -68,13 +68,13 @@ PCRLB_NOTE = (
 
 @register("ankf", "seed 000 scenario 3: EKF vs adaptive ANKF1/ANKF2 under a wrong noise "
           "model", 100)
-def ankf(runs: int, seed: int) -> ExperimentResult:
+def ankf(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
     """Case 3a under `results`, the others under `cases` (see the module docstring)."""
     seeds = scn.run_seeds(seed, runs)
     bodies = {}
     example = None
     for name, (scenario, filters, description) in scenarios().items():
-        case = scn.simulate(scenario, seeds, filters)
+        case = scn.simulate(scenario, seeds, filters, batch)
         bodies[name] = {
             "description": description,
             "parameters": scenario.parameters(),

@@ -72,9 +72,9 @@ def _case_body(case: scn.CaseRun, description: str, paper: dict[str, float] | No
 
 
 def _experiment(name: str, scenario: scn.Scenario, headline: str, runs: int, seed: int,
-                cases: dict[str, tuple[scn.Scenario, str]]) -> ExperimentResult:
+                cases: dict[str, tuple[scn.Scenario, str]], batch: bool) -> ExperimentResult:
     seeds = scn.run_seeds(seed, runs)
-    main = scn.simulate(scenario, seeds, FILTERS)
+    main = scn.simulate(scenario, seeds, FILTERS, batch)
     summary: dict[str, object] = {
         "experiment": name,
         "seed_paper": "000 (Khadour, Al Saba & Saleh 2019)",
@@ -98,7 +98,7 @@ def _experiment(name: str, scenario: scn.Scenario, headline: str, runs: int, see
     }
     summary.update(_case_body(main, headline, PAPER_RMSE[name]))
     summary["cases"] = {
-        case_name: _case_body(scn.simulate(sc, seeds, FILTERS), desc)
+        case_name: _case_body(scn.simulate(sc, seeds, FILTERS, batch), desc)
         for case_name, (sc, desc) in cases.items()
     }
     return ExperimentResult(scn.json_clean(summary), scn.example_run(main))
@@ -113,7 +113,7 @@ _MATCHED_NOTE = ("model-matched truth (Wiener velocity, sigma_v^2 = 0.1) with th
 
 
 @register("bearings-2", "seed 000 scenario 1: EKF/IEKF/UKF/CKF/IPLF, two bearing sensors", 100)
-def bearings_2(runs: int, seed: int) -> ExperimentResult:
+def bearings_2(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
     """Scenario 1 (paper table 2) with the deduced sensors; cases toolbox-sensors,
     model-matched and precise-sensors."""
     return _experiment(
@@ -133,12 +133,13 @@ def bearings_2(runs: int, seed: int) -> ExperimentResult:
                                 "mean drawn from N(x0, P0): the PCRLB is strict and a "
                                 "consistent filter has ANEES ~ 4"),
         },
+        batch,
     )
 
 
 @register("bearings-3", "seed 000 scenario 2: EKF/IEKF/UKF/CKF/IPLF, three bearing sensors",
           100)
-def bearings_3(runs: int, seed: int) -> ExperimentResult:
+def bearings_3(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
     """Scenario 2 (paper table 3): S1, S2 and S3 = (1 - 2 sqrt 3, 0); case model-matched."""
     return _experiment(
         "bearings-3", scn.Scenario(scn.SENSORS_THREE),
@@ -149,4 +150,5 @@ def bearings_3(runs: int, seed: int) -> ExperimentResult:
             "model-matched": (scn.Scenario(scn.SENSORS_THREE, truth="wiener"),
                               "three sensors; " + _MATCHED_NOTE),
         },
+        batch,
     )

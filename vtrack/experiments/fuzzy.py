@@ -154,14 +154,15 @@ RECORD = {"R": lambda f: each_run(f, np.diagonal(getattr(f, "R", f.measurement.R
           "q_scale": lambda f: each_run(f, getattr(f, "q_scale", np.ones(3)))}
 
 
-def run_filters(case: FuzzyCase, u: np.ndarray, z: np.ndarray, xhat0: np.ndarray
-                ) -> dict[str, MonteCarloRun]:
+def run_filters(case: FuzzyCase, u: np.ndarray, z: np.ndarray, xhat0: np.ndarray,
+                batch: bool = True) -> dict[str, MonteCarloRun]:
     """Every kind of KINDS, and the model-matched reference KF 'kf-matched' (true Q, true R
     of each step through a before-step hook, u known), over the runs' inputs u (R, STEPS, 3)
-    and measurements z (R, STEPS, 3) from the priors xhat0 (R, 6) (the harness)."""
+    and measurements z (R, STEPS, 3) from the priors xhat0 (R, 6) (the harness; batch as in
+    monte_carlo)."""
     U = u if case.u_known else None
     out = {kind: monte_carlo(kind, lambda r, kind=kind: _build(kind, case, xhat0[r]), z, T, U,
-                             RECORD) for kind in KINDS}
+                             RECORD, batch=batch) for kind in KINDS}
     schedule = np.array([case.r_at((k + 1) * T) for k in range(STEPS)])
 
     def true_r(f: GaussianFilter, k: int) -> None:
@@ -171,7 +172,7 @@ def run_filters(case: FuzzyCase, u: np.ndarray, z: np.ndarray, xhat0: np.ndarray
     out["kf-matched"] = monte_carlo(
         "kf", lambda r: make_filter("kf", ConstantVelocityInput3D(Q_TRUE),
                                     position_sensor(schedule[0]), xhat0[r], P0),
-        z, T, u, RECORD, before_step=true_r)
+        z, T, u, RECORD, before_step=true_r, batch=batch)
     return out
 
 
@@ -203,15 +204,15 @@ def summary(kind: str, run: MonteCarloRun, truth: np.ndarray) -> dict[str, Any]:
     return out
 
 
-def run_case(case: FuzzyCase, runs: int, seed: int, keep_example: bool = False
-             ) -> tuple[dict[str, Any], ExampleRun | None]:
+def run_case(case: FuzzyCase, runs: int, seed: int, keep_example: bool = False,
+             batch: bool = True) -> tuple[dict[str, Any], ExampleRun | None]:
     """Monte Carlo of one case: every kind and the reference on the same runs (paired)."""
     sims, xhat0 = [], []
     for truth_rng, filt_rng in run_generators(seed, runs):
         sims.append(simulate(case, truth_rng))
         xhat0.append(sims[-1][0][0] + filt_rng.multivariate_normal(np.zeros(6), P0))
     truth, u, z = (np.array([s[i] for s in sims]) for i in range(3))
-    filtered = run_filters(case, u, z, np.array(xhat0))
+    filtered = run_filters(case, u, z, np.array(xhat0), batch)
     matched = filtered.pop("kf-matched")
     results = {k: summary(k, filtered[k], truth) for k in KINDS}
     sq = {k: squared_error(r.x, truth[:, 1:], slice(0, 3)) for k, r in filtered.items()}
@@ -282,12 +283,12 @@ DESCRIPTION = (
 
 
 @register("fuzzy", "seed 003: KF vs fuzzy-adaptive R / Q Kalman filters", default_runs=50)
-def run(runs: int, seed: int) -> ExperimentResult:
-    head, example = run_case(HEADLINE, runs, seed, keep_example=True)
+def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
+    head, example = run_case(HEADLINE, runs, seed, keep_example=True, batch=batch)
     for kind, errs in PAPER_POSITION_ERRORS.items():
         head["results"][kind]["paper"] = {f"{axis}_error_cm_at_5s_frames": v
                                           for axis, v in errs.items()}
-    cases = {name: run_case(case, runs, seed)[0] for name, case in CASES.items()}
+    cases = {name: run_case(case, runs, seed, batch=batch)[0] for name, case in CASES.items()}
     summary = {
         "experiment": "fuzzy",
         "description": DESCRIPTION,

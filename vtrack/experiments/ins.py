@@ -135,90 +135,135 @@ class Series:
 
 # label -> (magnetometer aiding, eqs. 36-37 literally)
 VARIANTS = {"mag": (True, False), "no-mag": (False, False), "mag-paper": (True, True)}
-CHUNK = 16          # runs per filter batch (fixed, so results never depend on --runs)
+STACK = 1024        # filters per batch at most (runs x labels): the batch's memory is a few
+                    # of its covariances; a run's numbers do not depend on the batch
 
 
 def run_variant(batch: Batch, scn: Scenario, cfg: InsFilterConfig,
                 labels: tuple[str, ...] = AIDING, example_every: int | None = None,
-                nees_every: int = 4) -> dict[str, Series]:
-    """Run one filter configuration for every label of VARIANTS, CHUNK runs at a time, all
-    labels of a chunk in one batch; the errors against the truth are computed afterwards,
-    vectorised over the epochs."""
+                nees_every: int = 4, stacked: bool = True) -> dict[str, Series]:
+    """Run one filter configuration for every label of VARIANTS: all labels of a group of
+    runs as one batch of the filter (STACK filters at most; stacked=False: every run and
+    label alone, a batch of one, the per-run loop that batching replaces). The errors
+    against the truth are computed as the filter goes, vectorised over blocks of epochs."""
     runs = batch.accel.shape[0]
-    parts = [_run_chunk(batch, scn, cfg, labels, slice(r, min(r + CHUNK, runs)),
+    if stacked:
+        size = -(-runs // -(-runs * len(labels) // STACK))     # runs split evenly
+        groups = [(labels, r, size) for r in range(0, runs, size)]
+    else:
+        groups = [((label,), r, 1) for r in range(runs) for label in labels]
+    parts = [_run_chunk(batch, scn, cfg, lbs, slice(r, min(r + size, runs)),
                         example_every if r == 0 else None, nees_every)
-             for r in range(0, runs, CHUNK)]
+             for lbs, r, size in groups]
     out = {}
     for label in labels:
-        cols = {k: np.concatenate([pt[label][k] for pt in parts])
-                for k in parts[0][label] if k != "example"}
-        out[label] = Series(n_states=cfg.n_states, example=parts[0][label].get("example"),
-                            **cols)
+        mine = [pt[label] for pt in parts if label in pt]
+        cols = {k: np.concatenate([pt[k] for pt in mine]) for k in mine[0] if k != "example"}
+        out[label] = Series(n_states=cfg.n_states, example=mine[0].get("example"), **cols)
     return out
+
+
+class _Records:
+    """The filter's recorder for one batch: per epoch it copies the solution into a buffer
+    of BLOCK epochs; a full buffer is reduced to the Series columns (errors against the truth,
+    sigmas, NEES) vectorised over its epochs, so memory stays O(batch x epochs) in float32."""
+
+    BLOCK = 256
+
+    def __init__(self, batch: Batch, rows: np.ndarray, n: int, nees_every: int,
+                 example_every: int | None, ex_rows: list[int]) -> None:
+        B, K = len(rows), batch.accel.shape[1]
+        self.batch, self.rows, self.n = batch, rows, n
+        self.nees_every, self.example_every, self.ex_rows = nees_every, example_every, ex_rows
+        f32 = np.float32
+        self.out = {"pos_err": np.zeros((B, K, 3), f32), "vel_err": np.zeros((B, K, 3), f32),
+                    "pos_sig": np.zeros((B, K, 3), f32), "att_err": np.zeros((B, K, 3), f32),
+                    "yaw_err": np.zeros((B, K)), "yaw_sig": np.zeros((B, K)),
+                    "nees_pos": np.zeros((B, K)),
+                    "nees_full": np.zeros((B, (K - 1) // nees_every + 1))}
+        L, Lf = self.BLOCK, -(-self.BLOCK // nees_every)
+        self.p, self.v = np.zeros((L, B, 3)), np.zeros((L, B, 3))
+        self.R, self.Ppp = np.zeros((L, B, 3, 3)), np.zeros((L, B, 3, 3))
+        self.yaw_var = np.zeros((L, B))
+        self.full_P, self.bias = np.zeros((Lf, B, n, n)), np.zeros((Lf, B, 9))
+        self.k0, self.used = 0, 0
+        self.example: dict[str, list] = {"nav": [], "P": []}
+
+    def __call__(self, k: int, nav: NavState, P: np.ndarray) -> None:
+        i = k - self.k0
+        self.p[i], self.v[i], self.R[i] = nav.p, nav.v, nav.R
+        self.Ppp[i] = P[:, 0:3, 0:3]
+        self.yaw_var[i] = P[:, 8, 8]
+        if k % self.nees_every == 0:
+            j = k // self.nees_every - -(-self.k0 // self.nees_every)
+            self.full_P[j] = P
+            self.bias[j] = np.concatenate([nav.ba, nav.bg, nav.bm], axis=1)
+        if self.example_every and k % self.example_every == 0:
+            ex = self.ex_rows
+            rpy = dcm_to_euler(nav.R[ex])
+            self.example["nav"].append(np.concatenate([nav.p[ex], nav.v[ex], rpy], axis=1))
+            self.example["P"].append(P[ex, 0:9, 0:9])
+        self.used = i + 1
+        if self.used == self.BLOCK:
+            self.flush()
+
+    def flush(self) -> None:
+        """Reduce the buffered epochs k0 .. k0 + used - 1 to the Series columns."""
+        m, k0, o, t = self.used, self.k0, self.out, self.batch.traj
+        if not m:
+            return
+        ks = slice(k0, k0 + m)
+        T = lambda a: np.swapaxes(a[:m], 0, 1)  # noqa: E731  (epochs, runs) -> (runs, epochs)
+        pos_err = T(self.p) - t.p[ks]
+        Ppp, R = T(self.Ppp), T(self.R)
+        o["pos_err"][:, ks] = pos_err
+        o["vel_err"][:, ks] = T(self.v) - t.v[ks]
+        o["pos_sig"][:, ks] = np.sqrt(np.diagonal(Ppp, axis1=-2, axis2=-1))
+        o["att_err"][:, ks] = attitude_error(R, t.R[ks])
+        yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+        o["yaw_err"][:, ks] = np.pi - np.mod(np.pi - (yaw - self.batch.rpy[ks, 2]), 2 * np.pi)
+        o["yaw_sig"][:, ks] = np.sqrt(T(self.yaw_var))
+        o["nees_pos"][:, ks] = nees(pos_err, Ppp)
+        full = np.arange(-(-k0 // self.nees_every) * self.nees_every, k0 + m, self.nees_every)
+        if len(full):
+            i, b = full - k0, self.batch
+            true_bias = np.concatenate([a[:, full] for a in (b.ba, b.bg, b.bm)], -1)[self.rows]
+            e = np.concatenate([self.p[i] - t.p[full, None], self.v[i] - t.v[full, None],
+                                attitude_error(self.R[i], t.R[full, None]),
+                                (np.swapaxes(true_bias, 0, 1) - self.bias[:len(i)])
+                                [..., :self.n - 9]], axis=-1)
+            o["nees_full"][:, full // self.nees_every] = nees(e, self.full_P[:len(i)]).T
+        self.k0, self.used = k0 + m, 0
 
 
 def _run_chunk(batch: Batch, scn: Scenario, cfg: InsFilterConfig, labels: tuple[str, ...],
                rs: slice, example_every: int | None, nees_every: int
                ) -> dict[str, dict[str, np.ndarray]]:
-    runs, K = rs.stop - rs.start, batch.accel.shape[1]
-    n, A = cfg.n_states, len(labels)
-    B = runs * A
-    rep = lambda a: np.concatenate([a[rs]] * A)  # noqa: E731
+    runs = rs.stop - rs.start
+    A = len(labels)
+    rows = np.tile(np.arange(rs.start, rs.stop), A)      # the run of each batch element
     t = batch.traj
-    d = rep(batch.init_err)
-    zeros = np.zeros((B, 3))
+    d = batch.init_err[rows]
+    zeros = np.zeros((len(rows), 3))
     nav0 = NavState(t.p[0] + d[:, 0:3], t.v[0] + d[:, 3:6], exp_so3(-d[:, 6:9]) @ t.R[0],
                     zeros, zeros, zeros)
     P0 = cfg.initial_covariance(scn.init_pos, scn.init_vel, np.radians(scn.init_tilt_deg),
                                 np.radians(scn.init_yaw_deg))
-    ba, bg, bm = rep(batch.ba), rep(batch.bg), rep(batch.bm)
-    p, v = np.zeros((B, K, 3)), np.zeros((B, K, 3))
-    R, Ppp = np.zeros((B, K, 3, 3)), np.zeros((B, K, 3, 3))
-    yaw_var = np.zeros((B, K))
-    nees_full = np.zeros((B, (K - 1) // nees_every + 1))
-    ex_rows = [r * runs for r in range(A)]                # run 0 of each label
-    ex: dict[str, list] = {"nav": [], "P": []}
-
-    def recorder(k: int, nav: NavState, P: np.ndarray) -> None:
-        p[:, k], v[:, k], R[:, k] = nav.p, nav.v, nav.R
-        Ppp[:, k] = P[:, 0:3, 0:3]
-        yaw_var[:, k] = P[:, 8, 8]
-        if k % nees_every == 0:
-            e = [nav.p - t.p[k], nav.v - t.v[k], attitude_error(nav.R, t.R[k])]
-            if n >= 15:
-                e += [ba[:, k] - nav.ba, bg[:, k] - nav.bg]
-            if n == 18:
-                e.append(bm[:, k] - nav.bm)
-            nees_full[:, k // nees_every] = nees(np.concatenate(e, axis=1), P)
-        if example_every and k % example_every == 0:
-            rpy = dcm_to_euler(nav.R[ex_rows])
-            ex["nav"].append(np.concatenate([nav.p[ex_rows], nav.v[ex_rows], rpy], axis=1))
-            ex["P"].append(P[ex_rows, 0:9, 0:9])
-
+    rec = _Records(batch, rows, cfg.n_states, nees_every, example_every,
+                   [r * runs for r in range(A)])               # run 0 of each label
     aid = np.repeat([VARIANTS[lb][0] for lb in labels], runs)
     paper = np.repeat([VARIANTS[lb][1] for lb in labels], runs)
-    run_ins_filter(cfg, nav0, P0[None].repeat(B, axis=0), rep(batch.accel), rep(batch.gyro),
-                   rep(batch.mag), batch.gps_index, rep(batch.gps_pos), rep(batch.gps_vel),
-                   batch.gps_valid, aid, recorder, paper_attitude=paper)
-    pos_err = p - t.p
-    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
-    f32 = np.float32
-    rec = {
-        "pos_err": pos_err.astype(f32), "vel_err": (v - t.v).astype(f32),
-        "pos_sig": np.sqrt(np.diagonal(Ppp, axis1=-2, axis2=-1)).astype(f32),
-        "att_err": attitude_error(R, t.R).astype(f32),
-        "yaw_err": np.pi - np.mod(np.pi - (yaw - batch.rpy[:, 2]), 2 * np.pi),
-        "yaw_sig": np.sqrt(yaw_var),
-        "nees_pos": nees(pos_err, Ppp),
-        "nees_full": nees_full,
-    }
+    run_ins_filter(cfg, nav0, P0[None].repeat(len(rows), axis=0), batch.accel[rows],
+                   batch.gyro[rows], batch.mag[rows], batch.gps_index, batch.gps_pos[rows],
+                   batch.gps_vel[rows], batch.gps_valid, aid, rec, paper_attitude=paper)
+    rec.flush()
     out = {}
     for i, label in enumerate(labels):
         sl = slice(i * runs, (i + 1) * runs)
-        out[label] = {k: a[sl] for k, a in rec.items()}
+        out[label] = {k: a[sl] for k, a in rec.out.items()}
         if example_every:
-            out[label]["example"] = {"nav": np.array(ex["nav"])[:, i],
-                                     "P": np.array(ex["P"])[:, i]}
+            out[label]["example"] = {"nav": np.array(rec.example["nav"])[:, i],
+                                     "P": np.array(rec.example["P"])[:, i]}
     return out
 
 
@@ -381,38 +426,39 @@ def _describe(scn: Scenario, cfg: InsFilterConfig) -> dict[str, Any]:
 
 @register("ins", "seed 001 sec. 4: GPS-aided strapdown INS, with vs without magnetometer",
           default_runs=8)
-def run(runs: int, seed: int) -> ExperimentResult:
+def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
     every = HEADLINE.gps().every
-    batch = simulate(HEADLINE, runs, seed)
-    head = run_variant(batch, HEADLINE, filter_config(HEADLINE, 18),
-                       ("mag", "no-mag", "mag-paper"))
+    data = simulate(HEADLINE, runs, seed)
+    head = run_variant(data, HEADLINE, filter_config(HEADLINE, 18),
+                       ("mag", "no-mag", "mag-paper"), stacked=batch)
     paper_rows = head.pop("mag-paper")
-    results = {label: metrics(s, batch) for label, s in head.items()}
+    results = {label: metrics(s, data) for label, s in head.items()}
     _compare(results, head)
     cases: dict[str, Any] = {}
-    nine = run_variant(batch, HEADLINE, filter_config(HEADLINE, 9))
-    res9 = {label: metrics(s, batch) for label, s in nine.items()}
+    nine = run_variant(data, HEADLINE, filter_config(HEADLINE, 9), stacked=batch)
+    res9 = {label: metrics(s, data) for label, s in nine.items()}
     _compare(res9, nine)
     cases["nine-state"] = {
         "description": "the paper's 9-state filter [dr, dv, eps] (eqs. 28-33): sensor biases "
                        "covered by Q only (q = sigma_noise^2 + sigma_bias^2 * 10 s), heading "
                        "noise 1 deg", "results": res9}
-    fifteen = run_variant(batch, HEADLINE, filter_config(HEADLINE, 15), ("mag",))
+    fifteen = run_variant(data, HEADLINE, filter_config(HEADLINE, 15), ("mag",),
+                          stacked=batch)
     cases["fifteen-state"] = {
         "description": "15 states (+ accel and gyro bias; the magnetometer bias is not "
                        "modelled, heading noise 1 deg white). Without the magnetometer it is "
                        "identical to the headline's no-mag (the mag-bias states are then "
                        "decoupled), so only 'mag' is run",
-        "results": {"mag": metrics(fifteen["mag"], batch)}}
+        "results": {"mag": metrics(fifteen["mag"], data)}}
     cases["paper-attitude"] = {
         "description": "18 states, attitude rows exactly as eqs. 36-37 at every GPS epoch "
                        "(accelerometer roll/pitch even in turns, heading compensated with "
                        "them); same data as the headline",
-        "results": {"mag": metrics(paper_rows, batch)}}
+        "results": {"mag": metrics(paper_rows, data)}}
     # GPS outages (UAV) -- also the example run for plots/rerun
     ob = simulate(OUTAGE, runs, seed)
     ocfg = filter_config(OUTAGE, 18)
-    oser = run_variant(ob, OUTAGE, ocfg, example_every=every)
+    oser = run_variant(ob, OUTAGE, ocfg, example_every=every, stacked=batch)
     ores = {}
     for label, s in oser.items():
         ores[label] = metrics(s, ob)
@@ -425,7 +471,7 @@ def run(runs: int, seed: int) -> ExperimentResult:
     # the car drive (the paper's offline test)
     cb = simulate(CAR, runs, seed)
     ccfg = filter_config(CAR, 18)
-    cser = run_variant(cb, CAR, ccfg)
+    cser = run_variant(cb, CAR, ccfg, stacked=batch)
     cres = {label: metrics(s, cb) for label, s in cser.items()}
     _compare(cres, cser)
     cases["car"] = {"description": f"car drive {CAR.duration:.0f} s (10-18 m/s, 90 deg "

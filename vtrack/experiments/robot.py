@@ -339,8 +339,10 @@ def _errors(truth: np.ndarray, xs: np.ndarray) -> np.ndarray:
 
 
 def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KINDS,
-             keep_example: bool = False) -> tuple[dict[str, Any], ExampleRun | None]:
-    """Monte Carlo of one configuration; results keyed by kind (INTERFACE.md schema).
+             keep_example: bool = False, batch: bool = True
+             ) -> tuple[dict[str, Any], ExampleRun | None]:
+    """Monte Carlo of one configuration; results keyed by kind (INTERFACE.md schema); batch
+    as in monte_carlo.
 
     All kinds see the same truth, measurements and x0-hat in each run (paired design)."""
     truths, zs, xhat0s = [], [], []
@@ -361,7 +363,7 @@ def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KI
                              measurements=np.vstack([np.full((1, 3), np.nan), zs[0]]))
     for kind in kinds:
         run = monte_carlo(kind, lambda r, kind=kind: build_filter(kind, cfg, xhat0s[r]),
-                          np.array(zs), 1.0, record=COUNTERS)
+                          np.array(zs), 1.0, record=COUNTERS, batch=batch)
         acc = per[kind]
         for r in range(runs):
             if run.failed[r]:
@@ -526,8 +528,9 @@ DESCRIPTION = (
 
 @register("robot", "seed 002: UKF vs SR-UKF vs the paper's cube-root UKF on a robot",
           default_runs=50)
-def run(runs: int, seed: int) -> ExperimentResult:
-    results, example = run_case(PAPER, runs, seed, KINDS + COMPARED, keep_example=True)
+def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
+    results, example = run_case(PAPER, runs, seed, KINDS + COMPARED, keep_example=True,
+                                batch=batch)
     for kind, values in PAPER_TABLE1.items():
         results[kind]["paper"] = values
     excluded = []
@@ -545,7 +548,8 @@ def run(runs: int, seed: int) -> ExperimentResult:
     cases = {}
     for name, (cfg, text, full) in CASES.items():
         n = case_runs(runs, full)
-        res, _ = run_case(cfg, n, seed, KINDS + COMPARED if name == "unicycle" else KINDS)
+        res, _ = run_case(cfg, n, seed, KINDS + COMPARED if name == "unicycle" else KINDS,
+                          batch=batch)
         cases[name] = {"description": text, "runs": n, "config": cfg.describe(),
                        "results": res}
     summary = {

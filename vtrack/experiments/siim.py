@@ -158,15 +158,16 @@ def _filter(kind: str, motion: MotionModel, meas: MeasurementModel, x0: np.ndarr
 
 
 def run_filters(gammas: tuple[float, ...], motion: MotionModel, meas: MeasurementModel,
-                x0s: np.ndarray, P0: np.ndarray, z: np.ndarray, dt: float
-                ) -> dict[Any, MonteCarloRun]:
+                x0s: np.ndarray, P0: np.ndarray, z: np.ndarray, dt: float,
+                batch: bool = True) -> dict[Any, MonteCarloRun]:
     """The EKF ('ekf') and siim-ekf per gamma over the runs' scalar measurements z (R, K)
-    from the priors x0s (R, n) (the harness), recording the SIIM scale of R (r_scale)."""
+    from the priors x0s (R, n) (the harness; batch as in monte_carlo), recording the SIIM
+    scale of R (r_scale)."""
     record = {"r_scale": lambda f: getattr(f, "r_scale", 1.0)}
     return {g: monte_carlo("ekf" if g == "ekf" else "siim-ekf",
                            lambda r, g=g: _filter("ekf" if g == "ekf" else "siim-ekf", motion,
                                                   meas, x0s[r], P0, None if g == "ekf" else g),
-                           z[..., None], dt, record=record)
+                           z[..., None], dt, record=record, batch=batch)
             for g in ("ekf",) + tuple(gammas)}
 
 
@@ -187,7 +188,7 @@ def _gamma_entry(g: float, run: MonteCarloRun, ekf: MonteCarloRun, truth: np.nda
 
 
 def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int,
-                  keep_example: bool = False
+                  keep_example: bool = False, batch: bool = True
                   ) -> tuple[dict[str, Any], dict[float, dict[str, Any]], ExampleRun | None]:
     """EKF once and siim-ekf per gamma on the same runs. Returns (EKF entry plus the bound,
     {gamma: siim entry}, example)."""
@@ -201,7 +202,8 @@ def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int
         z.append(zr)
         x0s.append(filt_rng.multivariate_normal(np.array(sc.X0), P0))
     truths = np.array(X)[:, 1:]
-    res = run_filters(gammas, motion, meas, np.array(x0s), P0, np.array(z)[:, 1:], 1.0)
+    res = run_filters(gammas, motion, meas, np.array(x0s), P0, np.array(z)[:, 1:], 1.0,
+                      batch)
     # PCRLB along the same true trajectories (SEEDS 7.2): average H'R^-1H over runs per step
     Rinv = 1.0 / sc.R
     info = np.empty((K, 4, 4))
@@ -248,8 +250,8 @@ def run_scenario1(sc: Scenario1, gammas: tuple[float, ...], runs: int, seed: int
     return ekf, entries, example
 
 
-def run_scenario2(sc: Scenario2, gammas: tuple[float, ...], runs: int, seed: int
-                  ) -> tuple[dict[str, Any], dict[float, dict[str, Any]]]:
+def run_scenario2(sc: Scenario2, gammas: tuple[float, ...], runs: int, seed: int,
+                  batch: bool = True) -> tuple[dict[str, Any], dict[float, dict[str, Any]]]:
     motion, meas = sc.models()
     P0 = sc.P0 * np.eye(3)
     refs, z = [], []
@@ -260,7 +262,7 @@ def run_scenario2(sc: Scenario2, gammas: tuple[float, ...], runs: int, seed: int
         z.append(zr)
     ref = np.array(refs)
     x0s = np.broadcast_to(np.array(sc.xhat0), (runs, 3))
-    res = run_filters(gammas, motion, meas, x0s, P0, np.array(z), sc.dt)
+    res = run_filters(gammas, motion, meas, x0s, P0, np.array(z), sc.dt, batch)
     entries = {}
     for g, run in res.items():
         ent = _entry(run, ref, slice(0, 2), 3)
@@ -302,16 +304,16 @@ DESCRIPTION = (
 
 @register("siim", "seed 004: EKF vs SIIM fuzzy EKF (bearing and range radar), with PCRLB",
           default_runs=500)
-def run(runs: int, seed: int) -> ExperimentResult:
+def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
     s1 = Scenario1()
     ekf1, siim1, example = run_scenario1(s1, (s1.M,) + GAMMA_SWEEP, runs, seed,
-                                         keep_example=True)
+                                         keep_example=True, batch=batch)
     results = {"ekf": {**ekf1, "paper": PAPER_S1["ekf"]},
                "siim-ekf": {**siim1[s1.M], "paper": PAPER_S1["siim-ekf"]}}
     cases: dict[str, Any] = {}
     s2 = Scenario2()
     runs2 = max(2, runs // 10)
-    ekf2, siim2 = run_scenario2(s2, (s2.M,) + GAMMA_SWEEP, runs2, seed)
+    ekf2, siim2 = run_scenario2(s2, (s2.M,) + GAMMA_SWEEP, runs2, seed, batch)
     cases["scenario2"] = {
         "description": "range-only radar, receding target (Phil Kim's RadarEKF / GetRadar); "
                        f"gamma = M = {s2.M:g}; rmse over (distance, altitude)",
@@ -332,7 +334,7 @@ def run(runs: int, seed: int) -> ExperimentResult:
             "results": {"ekf": ekf2, "siim-ekf": siim2[g]},
         }
     s1b = Scenario1(R=np.deg2rad(0.1) ** 2)
-    ekf1b, siim1b, _ = run_scenario1(s1b, (s1b.M,), runs, seed)
+    ekf1b, siim1b, _ = run_scenario1(s1b, (s1b.M,), runs, seed, batch=batch)
     cases["scenario1-sigma-0.1deg"] = {
         "description": "scenario 1 with the alternative reading of R: sigma = 0.1 degree",
         "config": s1b.describe(),

@@ -33,9 +33,8 @@ import numpy as np
 from vtrack.estimation.kalman import kf_predict, kf_update
 from vtrack.ins.so3 import dcm_to_euler
 from vtrack.ins.strapdown import (
-    GRAVITY_N, NavState, attitude_jacobian, correct, error_dynamics, heading_from_mag,
-    heading_jacobian, mechanize, process_noise, tilt_from_accel, tilt_jacobian, transition,
-    wrap)
+    GRAVITY_N, NavState, attitude_jacobian, correct, error_transition, heading_from_mag,
+    heading_jacobian, mechanize, process_noise, tilt_from_accel, tilt_jacobian, wrap)
 
 DEG = np.pi / 180.0
 Recorder = Callable[[int, NavState, np.ndarray], None]
@@ -175,6 +174,9 @@ def run_ins_filter(cfg: InsFilterConfig, nav0: NavState, P0: np.ndarray, accel: 
     H = np.zeros((B, 9, n))
     H[:, 0:3, 0:3] = np.eye(3)
     H[:, 3:6, 3:6] = np.eye(3)
+    Rm = np.zeros((B, 9, 9))
+    idx = np.arange(8)
+    Rm[:, idx, idx] = np.concatenate([R_gps, [cfg.sigma_tilt**2] * 2])
     fix_at = {int(k): j for j, k in enumerate(gps_index)}
     stats = FilterStats()
     if recorder is not None:
@@ -183,10 +185,10 @@ def run_ins_filter(cfg: InsFilterConfig, nav0: NavState, P0: np.ndarray, accel: 
         s_b = accel[:, k] - nav.ba
         w_b = gyro[:, k] - nav.bg
         s_n = (nav.R @ s_b[:, :, None])[:, :, 0]
-        F = transition(error_dynamics(nav.R, s_n, omega_ie, n, cfg.coriolis), dt)  # eq. 32
+        F = error_transition(nav.R, s_n, omega_ie, n, dt, cfg.coriolis)     # eq. 32
         nav.p, nav.v, nav.R = mechanize(nav.p, nav.v, nav.R, s_b, w_b, dt, omega_ie,
                                         cfg.trapezoid)
-        x, P = kf_predict(x, P, F, Q)
+        x, P = kf_predict(x, P, F, Q, fx=x)     # x = 0 between updates (closed loop): F x = x
         j = fix_at.get(k + 1)
         if j is not None:
             lo = max(0, k + 2 - every)
@@ -198,9 +200,6 @@ def run_ins_filter(cfg: InsFilterConfig, nav0: NavState, P0: np.ndarray, accel: 
                 nu = np.concatenate([nav.p - gps_pos[:, j], nav.v - gps_vel[:, j], nu_att], 1)
                 nu = np.where(mask, nu, 0.0)                 # NaN of a missing fix -> 0
                 H[:, 6:9] = H_att
-                Rm = np.zeros((B, 9, 9))
-                idx = np.arange(8)
-                Rm[:, idx, idx] = np.concatenate([R_gps, [cfg.sigma_tilt**2] * 2])
                 Rm[:, 8, 8] = var_yaw
                 x, P, _ = kf_update(x, P, nu, H, Rm, mask)
                 nav = correct(nav, x)

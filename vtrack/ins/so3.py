@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 _SMALL = 1e-8
+_EYE3 = np.eye(3)
+_EYE3.flags.writeable = False
 
 
 def skew(w: np.ndarray) -> np.ndarray:
@@ -43,8 +45,8 @@ def exp_so3(phi: np.ndarray) -> np.ndarray:
     # Taylor series below 1e-4 rad keeps full double precision.
     s = np.where(small, 1.0 - a2 / 6.0, np.sin(a) / a)[..., None, None]
     c = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(a)) / a2s)[..., None, None]
-    K2 = phi[..., :, None] * phi[..., None, :] - a2[..., None, None] * np.eye(3)
-    return np.eye(3) + s * skew(phi) + c * K2
+    K2 = phi[..., :, None] * phi[..., None, :] - a2[..., None, None] * _EYE3
+    return _EYE3 + s * skew(phi) + c * K2
 
 
 def log_so3(R: np.ndarray) -> np.ndarray:

@@ -18,6 +18,7 @@ gets wrong.  Every function takes leading batch axes (Monte Carlo runs).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -59,7 +60,7 @@ def mechanize(p: np.ndarray, v: np.ndarray, R: np.ndarray, s_b: np.ndarray, w_ib
 
     s_b, w_ib are the (bias-corrected) accelerometer and gyro samples at t_{k-1}."""
     s_n = (R @ s_b[..., None])[..., 0]
-    v_new = v + dt * (s_n + GRAVITY_N - v @ (2.0 * skew(omega_ie)).T)     # 2 omega_ie x v
+    v_new = v + dt * (s_n + GRAVITY_N - v @ _coriolis(_key(omega_ie)))  # 2 omega_ie x v
     p_new = p + dt * (0.5 * (v + v_new) if trapezoid else v)
     w_in_b = omega_ie @ R                                                  # R' omega_ie
     R_new = R @ exp_so3((w_ib - w_in_b) * dt)
@@ -121,24 +122,69 @@ def error_dynamics(R: np.ndarray, s_n: np.ndarray, omega_ie: np.ndarray, n_state
 
     For n_states = 9 the bias columns are dropped (the paper's model, eq. 30: the sensor
     errors u = [ds, dw] enter only as noise through B); 18 adds the magnetometer bias."""
-    batch = R.shape[:-2]
-    A = np.zeros(batch + (n_states, n_states))
-    A[..., 0:3, 3:6] = np.eye(3)
-    if coriolis:
-        A[..., 3:6, 3:6] = -2.0 * skew(omega_ie)
-    A[..., 3:6, 6:9] = skew(s_n)
-    A[..., 6:9, 6:9] = -skew(omega_ie)
-    if n_states in (15, 18):
-        A[..., 3:6, 9:12] = R
-        A[..., 6:9, 12:15] = -R
-    elif n_states != 9:
-        raise ValueError("n_states must be 9, 15 or 18")
-    return A
+    return _error_matrix(_steady_dynamics(_key(omega_ie), n_states, coriolis), R, s_n, 1.0)
 
 
 def transition(A: np.ndarray, dt: float) -> np.ndarray:
     """Phi = I + A dT  (eq. 32)."""
     return np.eye(A.shape[-1]) + A * dt
+
+
+def error_transition(R: np.ndarray, s_n: np.ndarray, omega_ie: np.ndarray, n_states: int,
+                     dt: float, coriolis: bool = True) -> np.ndarray:
+    """transition(error_dynamics(...), dt), the same numbers, with I + A dT of the blocks
+    that do not change with the epoch computed once (the filter's step)."""
+    steady = _steady_transition(_key(omega_ie), n_states, coriolis, dt)
+    return _error_matrix(steady, R, s_n, dt)
+
+
+def _key(omega_ie: np.ndarray) -> tuple[float, ...]:
+    return tuple(float(w) for w in omega_ie)
+
+
+@lru_cache(maxsize=16)
+def _coriolis(omega_ie: tuple[float, ...]) -> np.ndarray:
+    """(2 omega_ie x)' for v @ it = 2 omega_ie x v (the mechanisation's Coriolis term)."""
+    out = (2.0 * skew(omega_ie)).T
+    out.flags.writeable = False
+    return out
+
+
+def _error_matrix(steady: np.ndarray, R: np.ndarray, s_n: np.ndarray, scale: float
+                  ) -> np.ndarray:
+    """`steady` with the blocks of A that change with the attitude and the specific force,
+    times `scale`, written in (one per batch element)."""
+    n = steady.shape[-1]
+    out = np.empty(R.shape[:-2] + (n, n))
+    out[...] = steady
+    out[..., 3:6, 6:9] = skew(s_n) * scale
+    if n >= 15:
+        out[..., 3:6, 9:12] = R * scale
+        out[..., 6:9, 12:15] = -R * scale
+    return out
+
+
+@lru_cache(maxsize=16)
+def _steady_dynamics(omega_ie: tuple[float, ...], n_states: int, coriolis: bool
+                     ) -> np.ndarray:
+    """The blocks of A that do not change with the attitude or the specific force."""
+    if n_states not in (9, 15, 18):
+        raise ValueError("n_states must be 9, 15 or 18")
+    A = np.zeros((n_states, n_states))
+    A[0:3, 3:6] = np.eye(3)
+    if coriolis:
+        A[3:6, 3:6] = -2.0 * skew(omega_ie)
+    A[6:9, 6:9] = -skew(omega_ie)
+    A.flags.writeable = False
+    return A
+
+
+@lru_cache(maxsize=16)
+def _steady_transition(omega_ie: tuple[float, ...], n_states: int, coriolis: bool, dt: float
+                       ) -> np.ndarray:
+    F = transition(_steady_dynamics(omega_ie, n_states, coriolis), dt)
+    F.flags.writeable = False
+    return F
 
 
 def process_noise(R: np.ndarray, n_states: int, dt: float, accel_psd: float, gyro_psd: float,
