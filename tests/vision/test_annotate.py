@@ -46,6 +46,19 @@ def test_draw_frame_with_nothing_to_draw_still_labels_the_frame():
     assert np.array_equal(out[40:], image[40:])
 
 
+def test_gates_and_zones_are_drawn_with_their_names():
+    image = np.zeros((240, 320, 3), dtype=np.uint8)
+    gate = np.array([[20.0, 200.0], [140.0, 200.0]])
+    zone = np.array([[200.0, 150.0], [300.0, 150.0], [300.0, 230.0], [200.0, 230.0]])
+    out = _draw(image, ids=[], boxes=np.zeros((0, 4)), coasted=[], trails={},
+                detections=None, lines=[], counts=[], regions=[("north", gate), ("queue", zone)])
+    assert out[200, 30].any()                 # the gate's line
+    assert out[190, 300].any()                # the zone's right side, closed polygon
+    assert not out[100, 100].any()            # nothing elsewhere
+    named = out[185:205, 60:110]              # the gate's name at its middle
+    assert (named == 0).mean() < 0.9
+
+
 def test_track_colours_are_stable_and_distinct():
     assert track_colour(5) == track_colour(5)
     colours = {track_colour(i) for i in range(1, 30)}

@@ -223,6 +223,11 @@ class TrafficAnalytics:
         """(forward, backward) per line so far (for the annotated frames)."""
         return [(c["forward"], c["backward"]) for c in self.counter.counts()]
 
+    def regions_px(self) -> list[tuple[str, np.ndarray]]:
+        """(name, points in pixels) of every gate and zone (for the annotated frames)."""
+        return ([(n, np.asarray(s)) for n, s in zip(self.gates.names, self.gates.shapes)]
+                + [(n, np.asarray(p)) for n, p in zip(self.zones.names, self.zones.polygons)])
+
     def flush(self, final: bool = False) -> dict[str, Any]:
         """Write what became final since the last flush (all of it with `final`: the run is
         over and live tracks end here); returns summary.json's `counts`, `zones`,

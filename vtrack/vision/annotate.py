@@ -5,7 +5,8 @@ this frame, drawn at the prediction): thin dashed grey box tagged "coast"; trail
 track's colour; detections: small crosses (motion-only blobs), and for the boxes the
 appearance model drew a thin box with the class and score, cyan where motion saw the
 vehicle too, orange where only appearance did (a standing vehicle); counting lines with
-their forward/backward counts; the frame number. Everything is plain OpenCV drawing on one copy of the frame.
+their forward/backward counts; gates (a line or polygon) and zones (a polygon) with their
+names; the frame number. Everything is plain OpenCV drawing on one copy of the frame.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ COAST_BGR = (170, 170, 170)
 DETECTION_BGR = (0, 255, 255)
 PROVENANCE_BGR = {1: (0, 140, 255), 2: (255, 255, 0)}   # appearance only, both (fusion.py)
 LINE_BGR = (255, 0, 255)
+REGION_BGR = (80, 220, 80)
 TEXT_BGR = (255, 255, 255)
 
 
@@ -70,14 +72,20 @@ def draw_frame(image: np.ndarray, *, ids: Sequence[int], boxes: np.ndarray | Seq
                trails: Mapping[int, Sequence[tuple[float, float]]],
                detections: Detections | None,
                lines: Sequence[tuple[float, float, float, float]],
-               counts: Sequence[tuple[int, int]], frame_index: int) -> np.ndarray:
+               counts: Sequence[tuple[int, int]], frame_index: int,
+               regions: Sequence[tuple[str, np.ndarray]] = ()) -> np.ndarray:
     """Annotated copy of `image` (HxWx3 BGR); `image` itself is not modified.
 
     ids/boxes/coasted: one entry per track shown (boxes x, y, w, h in pixels); trails: past
-    box centres per id; lines and counts: one (x1, y1, x2, y2) and (forward, backward) each.
+    box centres per id; lines and counts: one (x1, y1, x2, y2) and (forward, backward) each;
+    regions: named gates and zones, (name, points (n, 2) in pixels): two points a line,
+    more a polygon.
     """
     out = image.copy()
     font, thick = _style(out.shape[1], out.shape[0])
+    for name, points in regions:
+        _draw_region(out, name, np.asarray(points, dtype=np.float64).reshape(-1, 2), font,
+                     thick)
     for tid, pts in trails.items():
         if len(pts) > 1:
             poly = np.round(np.asarray(pts, dtype=np.float64)).astype(np.int32)
@@ -105,6 +113,15 @@ def draw_frame(image: np.ndarray, *, ids: Sequence[int], boxes: np.ndarray | Seq
                LINE_BGR, font, 1)
     _label(out, f"frame {frame_index}", 0, 0, TEXT_BGR, font, 1)
     return out
+
+
+def _draw_region(out: np.ndarray, name: str, points: np.ndarray, font: float, thick: int
+                 ) -> None:
+    """A gate or zone: its line or closed polygon, named at its middle."""
+    poly = np.round(points).astype(np.int32)
+    cv2.polylines(out, [poly], len(poly) > 2, REGION_BGR, thick, cv2.LINE_AA)
+    x, y = np.round(points.mean(axis=0)).astype(int)
+    _label(out, name, int(x), int(y), REGION_BGR, font, 1)
 
 
 def _draw_looks(out: np.ndarray, dets: Detections, font: float) -> None:
