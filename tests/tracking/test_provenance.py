@@ -208,3 +208,23 @@ def test_a_turning_vehicle_keeps_its_id_through_a_junction() -> None:
                     ids[name].add(int(out.ids[np.argmin(gap)]))
     assert len(ids["turner"]) == 1 and len(ids["straight"]) == 1
     assert ids["turner"] != ids["straight"]
+
+
+def _assigned_is_whole() -> list[bool]:
+    """Whether the detection a confirmed track takes is a whole box, when the vehicle's
+    whole box (drawn 25 % larger than its size) comes with a motion-only piece of it (a
+    window, a shadow's edge) right at the predicted centre."""
+    tracker = _tracker()
+    box = _drive(tracker, 20, whole=True)
+    whole_box = [box[0] - 12.5, box[1] - 12.5, 125.0, 125.0]
+    piece = [box[0] + 35.0, box[1] + 35.0, 30.0, 30.0]
+    boxes = np.array([piece, whole_box])
+    t = 20 / FPS
+    tracker.predict(t)
+    a = tracker.associator.associate(tracker.tracks, tracker.gaps, t, centre(boxes), boxes,
+                                     whole=np.array([False, True]))
+    return a.whole[a.detections].tolist()
+
+
+def test_a_whole_box_is_assigned_before_a_blob_nearer_the_prediction() -> None:
+    assert _assigned_is_whole() == [True]

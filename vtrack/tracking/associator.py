@@ -9,7 +9,8 @@ duplicates) and the fragment stage's gap record after this frame.
 2. gate and assign: Mahalanobis gating on k-d-tree candidates, optimal assignment per
    connected group (vtrack.tracking.association); a whole box (provenance.py) is measured
    as the vehicle: its centre, and its sides (those the border does not cut) within the
-   size gate of the track's size and in the cost;
+   size gate of the track's size and in the cost; whole boxes are assigned first, blobs
+   to the tracks left;
 3. shared blobs (`resolve_shared`): a detection holding the predicted centres of several
    confirmed tracks is a duplicate (the younger tracks are deleted) or a merge (the tracks
    coast); a whole box (provenance.py) is never a merge;
@@ -97,13 +98,26 @@ class Associator:
         # would let a coasting track with a large box jump to a neighbour).
         touch = intersection(track_boxes[ti], boxes[di]) > 0
         ti, di, cost = ti[touch], di[touch], cost[touch]
-        mt, md = assign(ti, di, cost, len(tracks), len(centers))
+        mt, md = assign_whole_first(ti, di, cost, f.whole[di], len(tracks), len(centers))
         mt, md, consumed, duplicates, patient = resolve_shared(cfg, tracks, track_boxes, mt,
                                                                md, boxes, f.whole)
         mt, md = reacquire(cfg, tracks, track_boxes, mt, md, consumed, duplicates, centers,
                            boxes)
         return Association(centers, boxes, mt, md, consumed, f.split, duplicates, patient,
                            f.gaps, f.origin, f.whole)
+
+
+def assign_whole_first(ti: np.ndarray, di: np.ndarray, cost: np.ndarray, whole: np.ndarray,
+                       n_tracks: int, n_dets: int) -> tuple[np.ndarray, np.ndarray]:
+    """The assignment (association.assign) of the gated pairs in two rounds: the whole boxes
+    first (provenance.py: a vehicle's own box, whose sides add to its cost), then the blobs
+    to the tracks left (a blob's cost has no size term, so in one round a piece or a merge
+    beside a vehicle's whole box would win it for its centre alone). `whole` (len(ti),)
+    marks the pairs on whole boxes."""
+    wt, wd = assign(ti[whole], di[whole], cost[whole], n_tracks, n_dets)
+    rest = ~whole & ~np.isin(ti, wt)
+    bt, bd = assign(ti[rest], di[rest], cost[rest], n_tracks, n_dets)
+    return np.concatenate([wt, bt]), np.concatenate([wd, bd])
 
 
 def resolve_shared(cfg: TrackerConfig, tracks: TrackTable, track_boxes: np.ndarray,

@@ -19,6 +19,8 @@ a whole box as whole and keeps its blob heuristics for motion-only measurements:
   centre, and its sides are compared with the track's size: a side the border does not cut
   must lie in the size gate (`size_gate_probability`), and the sides' distance adds to the
   assignment's cost (a vehicle entering where another leaves is not the one leaving);
+  whole boxes are assigned before blobs (a blob's cost has no size term: a piece nearer
+  the predicted centre would otherwise win the track from its vehicle's whole box);
 - sizes (sizes.py): a whole box is never a partial view behind a static occluder, and a
   smaller whole box restarts the size at once (no `size_shrink_seconds` wait), unless it
   lies within CUT_SIGMAS of its detection sigma of the image border (`near_border`: a
