@@ -2,8 +2,9 @@
 
 import numpy as np
 
-from vtrack.boxes import (centre, clip, contains, edges, from_centre, in_image, intersection, iou,
-                          on_border, overlap_of_smaller, paired_iou, scale)
+from vtrack.boxes import (centre, clip, contains, edges, enclosing, enclosing_each, from_centre,
+                          in_image, intersection, iou, on_border, overlap_of_smaller,
+                          paired_iou, scale)
 
 
 def test_paired_iou_of_hand_worked_pairs():
@@ -30,6 +31,18 @@ def test_overlap_of_smaller_and_degenerate_boxes():
     others = np.array([[2, 2, 4, 4], [5, 5, 10, 10], [0, 0, 0, 0]], float)
     assert np.allclose(overlap_of_smaller(box, others), [1.0, 25 / 100, 0.0])
     assert paired_iou(np.zeros(4), np.zeros(4)) == 0.0   # two empty boxes: no overlap
+
+
+def test_enclosing_each_is_enclosing_of_each_row_bit_for_bit():
+    rng = np.random.default_rng(1)
+    boxes = np.column_stack([rng.uniform(-20, 50, (6, 2)), rng.uniform(0.1, 30, (6, 2))])
+    member = rng.random((40, 6)) < 0.4
+    member = member[member.any(axis=1)]
+    each = enclosing_each(boxes, member)
+    for row, chosen in zip(each, member, strict=True):
+        assert row.tobytes() == enclosing(boxes[chosen]).tobytes()
+    assert enclosing_each(boxes, np.zeros((0, 6), bool)).shape == (0, 4)
+    assert enclosing_each(np.zeros((0, 4)), np.zeros((0, 0), bool)).shape == (0, 4)
 
 
 def test_clip_cuts_boxes_to_the_image():

@@ -38,13 +38,20 @@ def enclosing(boxes: np.ndarray) -> np.ndarray:
     return np.array([x0, y0, x1 - x0, y1 - y0])
 
 
+def enclosing_each(boxes: np.ndarray, member: np.ndarray) -> np.ndarray:
+    """(n, 4): for each row of `member` (n, B) bool, the box around the boxes (B, 4) it
+    selects (`enclosing` of each; a row must select one at least)."""
+    chosen = member[:, :, None]
+    ends = boxes[:, :2] + boxes[:, 2:]
+    lo = np.where(chosen, boxes[None, :, :2], np.inf).min(axis=1, initial=np.inf)
+    hi = np.where(chosen, ends[None], -np.inf).max(axis=1, initial=-np.inf)
+    return np.concatenate([lo, hi - lo], axis=1)
+
+
 def clip(boxes: np.ndarray, width: float, height: float) -> np.ndarray:
     """Boxes (n, 4) cut to the image [0, width] x [0, height] (may become empty)."""
-    x0 = np.clip(boxes[:, 0], 0, width)
-    y0 = np.clip(boxes[:, 1], 0, height)
-    x1 = np.clip(boxes[:, 0] + boxes[:, 2], 0, width)
-    y1 = np.clip(boxes[:, 1] + boxes[:, 3], 0, height)
-    return np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)
+    cut = np.clip(edges(boxes), 0, (width, height, width, height))   # x0, y0, x1, y1
+    return np.concatenate([cut[:, :2], cut[:, 2:] - cut[:, :2]], axis=1)
 
 
 def centre(boxes: np.ndarray) -> np.ndarray:

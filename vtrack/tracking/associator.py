@@ -51,6 +51,7 @@ class Association:
     gaps: GapColumns         # the fragment stage's gap record after this frame
     origin: np.ndarray       # (D,) the input detection each of `boxes` is (fragments.py)
     whole: np.ndarray        # (D,) each of `boxes` is a whole box (provenance.py)
+    track_boxes: np.ndarray  # (N, 4) every track's predicted box, clipped to the image
 
 
 class Associator:
@@ -104,7 +105,7 @@ class Associator:
         mt, md = reacquire(cfg, tracks, track_boxes, mt, md, consumed, duplicates, centers,
                            boxes)
         return Association(centers, boxes, mt, md, consumed, f.split, duplicates, patient,
-                           f.gaps, f.origin, f.whole)
+                           f.gaps, f.origin, f.whole, track_boxes)
 
 
 def assign_whole_first(ti: np.ndarray, di: np.ndarray, cost: np.ndarray, whole: np.ndarray,

@@ -178,8 +178,10 @@ def own_size(own: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     exp(median) k and 1.4826 MAD. nan until OWN detections, and where the middle ones
     disagree by more than OWN_SPREAD (a vehicle seen now whole, now in pieces)."""
     ranked = np.sort(own, axis=1)                  # nan (not yet seen) sorts last
-    m = np.where(np.isnan(ranked[:, -1]), np.nan, ranked[:, own.shape[1] // 2])
-    sigma = 1.4826 * np.median(np.abs(own - m[:, None]), axis=1)
+    middle = own.shape[1] // 2
+    m = np.where(np.isnan(ranked[:, -1]), np.nan, ranked[:, middle])
+    # the median of OWN (odd) values is the middle one; where m is nan all are nan
+    sigma = 1.4826 * np.sort(np.abs(own - m[:, None]), axis=1)[:, middle]
     m[ranked[:, -2] - ranked[:, 1] > OWN_SPREAD] = np.nan
     return np.exp(m) * k[:, None], sigma
 

@@ -3,7 +3,6 @@ every other role's by the tracker (the track table, table.py, joins them)."""
 
 from __future__ import annotations
 
-from dataclasses import fields
 from typing import Any, ClassVar, Self
 
 import numpy as np
@@ -13,7 +12,7 @@ class Columns:
     """Per-track columns (a struct of arrays, one row a track) owned by one role: the role
     gives new rows their initial values and moves them with the camera (`warp`); the
     tracker keeps every role's rows in step (`keep`, `append`). A subclass is a dataclass
-    of arrays whose shapes and dtypes per track are its LAYOUT."""
+    of arrays whose shapes and dtypes per track are its LAYOUT (its fields, in order)."""
 
     LAYOUT: ClassVar[dict[str, tuple[tuple[int, ...], Any]]] = {}
 
@@ -28,18 +27,17 @@ class Columns:
 
     def keep(self, mask: np.ndarray) -> None:
         """Drop the rows where `mask` is False."""
-        for f in fields(self):
-            setattr(self, f.name, getattr(self, f.name)[mask])
+        for name in self.LAYOUT:
+            setattr(self, name, getattr(self, name)[mask])
 
     def append(self, other: Self) -> None:
         """Add the rows of `other` at the end."""
-        for f in fields(self):
-            setattr(self, f.name, np.concatenate([getattr(self, f.name),
-                                                  getattr(other, f.name)]))
+        for name in self.LAYOUT:
+            setattr(self, name, np.concatenate([getattr(self, name), getattr(other, name)]))
 
     def copy(self) -> Self:
         """An independent copy."""
-        return type(self)(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
+        return type(self)(**{name: getattr(self, name).copy() for name in self.LAYOUT})
 
     def warp(self, m: np.ndarray) -> None:
         """Move the rows with the camera: m (2, 3) maps the previous frame's pixels onto the

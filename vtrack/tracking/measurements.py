@@ -139,8 +139,7 @@ def finite_difference_measurement(points: np.ndarray, times: np.ndarray, count: 
     position_only keeps only the position rows.
     """
     n = len(points)
-    D = _operator(times, count)
-    z = np.einsum("nij,njd->nid", D, points).reshape(n, 6)   # [x, y, vx, vy, ax, ay]
+    D, z = _differences(points, times, count)
     var = np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, (n, 3, 2))
     R = np.zeros((n, 6, 6))
     for axis in (0, 1):
@@ -162,21 +161,23 @@ def measurement_model(points: np.ndarray, times: np.ndarray, count: np.ndarray,
     if mode == "finite-difference-white":
         z, R, mask = finite_difference_measurement(points, times, count, sigmas)
         return z, H, R, mask
-    z, _, mask = finite_difference_measurement(points, times, count, 1.0)
+    D, z = _differences(points, times, count)
     if mode == "finite-difference":
-        z[:, :2] = new_detection(z, points, times, count, mask)
+        z[:, :2] = new_detection(z, points, times, count, _rows(count, position_only=False),
+                                 D)
     R = np.zeros((n, 6, 6))
     R[:, [0, 1], [0, 1]] = sigmas[:, 0] ** 2
     return z, H, R, _rows(count, position_only=True)
 
 
 def new_detection(z: np.ndarray, points: np.ndarray, times: np.ndarray, count: np.ndarray,
-                  mask: np.ndarray) -> np.ndarray:
+                  mask: np.ndarray, D: np.ndarray | None = None) -> np.ndarray:
     """The new detection p_k = D0+ (z - c) recovered from the seed's measurement z (N, 6)
     over its present rows `mask`, with c = D1 p_{k-1} + D2 p_{k-2} from the detections
-    already assimilated (module docstring); (N, 2)."""
+    already assimilated (module docstring); (N, 2). `D`: the difference operators of
+    `times` (N, 3, 3), when at hand."""
     n = len(z)
-    D = _operator(times, count)
+    D = _operator(times, count) if D is None else D
     c = np.einsum("nij,njd->nid", D[:, :, 1:], points[:, 1:]).reshape(n, 6)
     d0 = np.repeat(D[:, :, 0], 2, axis=1) * mask           # rows (p, v, a) x (x, y)
     num = (d0 * (z - c)).reshape(n, 3, 2).sum(axis=1)
@@ -192,6 +193,15 @@ def _spacings(times: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 def _operator(times: np.ndarray, count: np.ndarray) -> np.ndarray:
     return difference_operator(*_spacings(times, count))
+
+
+def _differences(points: np.ndarray, times: np.ndarray, count: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The difference operators D (N, 3, 3) of `times` and the seed's z (N, 6) of `points`
+    (finite_difference_measurement)."""
+    D = _operator(times, count)
+    z = np.einsum("nij,njd->nid", D, points).reshape(len(points), 6)   # [x, y, vx, ...]
+    return D, z
 
 
 def _rows(count: np.ndarray, position_only: bool) -> np.ndarray:

@@ -17,7 +17,8 @@ table reads and writes each column by its name (`tracks.x` is `tracks.centre.x`)
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
+from operator import attrgetter
 from typing import get_type_hints
 
 import numpy as np
@@ -47,7 +48,7 @@ class TrackTable:
 
     def groups(self) -> list[Columns]:
         """The role groups, in field order."""
-        return [getattr(self, f.name) for f in fields(self)]
+        return [self.centre, self.history, self.box_size, self.life]
 
     def __len__(self) -> int:
         return len(self.centre)
@@ -89,8 +90,7 @@ class TrackTable:
 
 
 def _column(group: str, name: str) -> property:
-    def get(self: TrackTable) -> np.ndarray:
-        return getattr(getattr(self, group), name)
+    get = attrgetter(f"{group}.{name}")   # read on every use: C, not a Python frame
 
     def put(self: TrackTable, value: np.ndarray) -> None:
         setattr(getattr(self, group), name, value)

@@ -138,7 +138,7 @@ class Tracker:
                                       changed if self.cfg.gap_labels else None,
                                       whole_in if whole_in.any() else None)
         self.gaps = a.gaps
-        predicted = tracks.boxes(W, H)[a.tracks]
+        predicted = a.track_boxes[a.tracks]
         prior_x, prior_P = tracks.x.copy(), tracks.P.copy()
         # update sizes, measure centres, update centres (the tracks detected)
         innov, whole = self._assimilate(a.tracks, a.boxes[a.detections], t, a.split[a.tracks],
@@ -214,6 +214,8 @@ class Tracker:
     def _start(self, t: float, centers: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         """Append tentative tracks on these detections (assimilated by _assimilate next);
         returns their indices."""
+        if len(boxes) == 0:
+            return np.zeros(0, dtype=int)
         scale = box_scale(boxes)
         var = np.repeat(detection_sigma(self.cfg, scale)[:, None] ** 2, 2, axis=1)
         new = TrackTable(centre=self.bank.prior(centers, scale),
@@ -227,6 +229,8 @@ class Tracker:
 
     def _delete(self, ended: np.ndarray) -> None:
         """Remove the tracks `ended` (N,) from every role that holds per-track state."""
+        if not ended.any():
+            return
         self.bank.forget(self.tracks.uid[ended])
         self.tracks.keep(~ended)
         self.gaps.keep(~ended)

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtrack.boxes import enclosing, intersection
+from vtrack.boxes import enclosing, enclosing_each, intersection
 from vtrack.vision.appearance import AppearanceBoxes
 
 MOTION, APPEARANCE, BOTH = 0, 1, 2
@@ -179,22 +179,21 @@ def follow(riders: Fused, blobs: np.ndarray, areas: np.ndarray) -> Fused:
     where they stand, and the blobs no rider takes as motion detections (the module's
     rules)."""
     carried = ~np.isnan(riders.carrier[:, 0])
-    taken = np.zeros(len(blobs), dtype=bool)
     keep = np.zeros(len(riders.boxes), dtype=bool)
     boxes, carriers = riders.boxes.copy(), riders.carrier.copy()
-    link = links(riders.carrier[carried], blobs) if carried.any() else None
-    for i, r in enumerate(np.flatnonzero(carried)):
-        held = link[i]
-        if not held.any():
-            continue
-        new = enclosing(blobs[held])
-        change = new[2:] / np.maximum(riders.first[r, 2:], 1e-9)
-        if np.any((change > CARRIER_CHANGE) | (change < 1 / CARRIER_CHANGE)):
-            continue
-        rel = relative(riders.boxes[r][None], riders.carrier[r][None])
-        boxes[r], carriers[r] = placed(rel, new[None])[0], new
-        taken |= held
-        keep[r] = True
+    # the riders whose carrier links to blobs, and those blobs (their new carrier)
+    rows = np.flatnonzero(carried)
+    held = links(riders.carrier[rows], blobs)
+    linked = held.any(axis=1)
+    rows, held = rows[linked], held[linked]
+    new = enclosing_each(blobs, held)
+    change = new[:, 2:] / np.maximum(riders.first[rows, 2:], 1e-9)
+    ride = ~np.any((change > CARRIER_CHANGE) | (change < 1 / CARRIER_CHANGE), axis=1)
+    rows, held, new = rows[ride], held[ride], new[ride]
+    boxes[rows] = placed(relative(riders.boxes[rows], riders.carrier[rows]), new)
+    carriers[rows] = new
+    keep[rows] = True
+    taken = held.any(axis=0)   # the blobs the riders ride on
     standing = np.flatnonzero(~carried)
     if len(standing):
         keep[standing] = ~links(blobs, riders.boxes[standing]).any(axis=0)
