@@ -305,14 +305,3 @@ def test_opencv_threads_during_a_run(synth_video, tmp_path, monkeypatch):
         assert seen == {2}
     finally:
         cv2.setNumThreads(before)
-
-
-def test_switch_interval_inside_the_block_and_restored():
-    """The run's short thread switch interval (the workers overlap the tracking) holds
-    inside the block only."""
-    from vtrack.app.track import switch_interval
-
-    before = sys.getswitchinterval()
-    with switch_interval(1e-4):
-        assert sys.getswitchinterval() == pytest.approx(1e-4)
-    assert sys.getswitchinterval() == before

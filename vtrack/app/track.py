@@ -38,10 +38,6 @@ from vtrack.vision.appearance import VEHICLE_CLASSES
 from vtrack.io.sources import parse_source
 
 
-# Python's thread switch interval during a run (its default is 5 ms); see switch_interval
-SWITCH_SECONDS = 1e-4
-
-
 def _warn(message: str) -> None:
     print(f"warning: {message}", file=sys.stderr)
 
@@ -113,7 +109,7 @@ class TrackJob:
         """Track the whole source; returns the summary (also on interruption or a lost
         source, then re-raised)."""
         start = profile.now()
-        with opencv_threads(self.opts.cv_threads), switch_interval(SWITCH_SECONDS):
+        with opencv_threads(self.opts.cv_threads):
             return self._run(start)
 
     def _run(self, start: profile.Timing) -> dict[str, Any]:
@@ -412,33 +408,12 @@ def opencv_threads(n: int) -> Iterator[None]:
         return
     import cv2
 
-    with _set_during(cv2.getNumThreads, cv2.setNumThreads, n):
-        yield
-
-
-@contextlib.contextmanager
-def switch_interval(seconds: float) -> Iterator[None]:
-    """Python's thread switch interval at `seconds` inside the block. The worker threads
-    (the image stages, the appearance model) run OpenCV and onnxruntime without the GIL
-    but need it back after each call; while the main thread runs the tracker's Python, a
-    worker waits a whole interval for it each time, and at the default 5 ms the workers
-    only ran while the main thread waited for them: no overlap on small frames. A short
-    interval lets them overlap (the results do not depend on the threads' timing)."""
-    with _set_during(sys.getswitchinterval, sys.setswitchinterval, seconds):
-        yield
-
-
-@contextlib.contextmanager
-def _set_during(get: Callable[[], Any], put: Callable[[Any], None], value: Any
-                ) -> Iterator[None]:
-    """A setting (read by `get`, written by `put`) at `value` inside the block, restored
-    after it."""
-    before = get()
-    put(value)
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(n)
     try:
         yield
     finally:
-        put(before)
+        cv2.setNumThreads(before)
 
 
 def segmented(frames: Iterable[tuple[Any, bool]], detector: Any
