@@ -82,6 +82,11 @@ class TrafficAnalytics:
         self.gates = GateCounter([g.name for g in gates],
                                  [g.pixels(width, height) for g in gates],
                                  [g.line is not None for g in gates])
+        # (name, points in pixels) of every gate and zone, for the annotated frames
+        self.regions_px = ([(n, np.asarray(p)) for n, p in zip(self.gates.names,
+                                                               self.gates.shapes)]
+                           + [(n, np.asarray(p)) for n, p in zip(self.zones.names,
+                                                                 self.zones.polygons)])
         known = set(looks_classes)
         self.looks = bool(known)
         if calibration is not None:
@@ -222,11 +227,6 @@ class TrafficAnalytics:
     def line_counts(self) -> list[tuple[int, int]]:
         """(forward, backward) per line so far (for the annotated frames)."""
         return [(c["forward"], c["backward"]) for c in self.counter.counts()]
-
-    def regions_px(self) -> list[tuple[str, np.ndarray]]:
-        """(name, points in pixels) of every gate and zone (for the annotated frames)."""
-        return ([(n, np.asarray(s)) for n, s in zip(self.gates.names, self.gates.shapes)]
-                + [(n, np.asarray(p)) for n, p in zip(self.zones.names, self.zones.polygons)])
 
     def flush(self, final: bool = False) -> dict[str, Any]:
         """Write what became final since the last flush (all of it with `final`: the run is

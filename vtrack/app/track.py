@@ -360,7 +360,7 @@ class TrackJob:
         img = draw_frame(frame.image, ids=ft.ids, boxes=ft.boxes, coasted=ft.coasted,
                          trails={i: self.trails.paths.get(int(i), []) for i in ft.ids},
                          detections=dets, lines=self.analytics.lines_px, counts=counts,
-                         frame_index=frame.index, regions=self.analytics.regions_px())
+                         frame_index=frame.index, regions=self.analytics.regions_px)
         if self.opts.save_frames:
             save_jpeg(self.out / "frames" / f"{frame.index:06d}.jpg", img,
                       quality=self.cfg.output.jpeg_quality)
