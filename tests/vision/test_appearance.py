@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 from vtrack.cli import main
+from vtrack.boxes import iou
 from vtrack.vision.appearance import (SHIPPED_SHA256, VEHICLE_CLASSES, AppearanceBoxes,
-                                      AppearanceModel, cut, decode, grid, shipped_model,
-                                      tiles, with_riders)
+                                      AppearanceModel, cut, decode, grid, letterbox,
+                                      shipped_model, tiles, with_riders)
 from vtrack.vision.fusion import APPEARANCE, BOTH, MOTION, Fused, follow, fuse, renew
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -124,6 +125,53 @@ def test_opencv_dnn_agrees_with_onnxruntime(model):
     np.testing.assert_allclose(a.scores, b.scores, atol=1e-4)
 
 
+def test_the_models_input_size_is_made_free():
+    """onnxsize rewrites the shipped model's declared 1x3x416x416 input as 1x3xhxw (and
+    its 3549 output rows as n) without changing the file's length; onnxruntime then runs
+    a 256x416 input with YOLOX's rows for it. A truncated model is a ValueError."""
+    import onnxruntime as ort
+
+    from vtrack.vision.onnxsize import free_input_size
+
+    data = shipped_model().read_bytes()
+    free, shape = free_input_size(data)
+    assert shape == (1, 3, 416, 416) and len(free) == len(data) and free != data
+    session = ort.InferenceSession(free, providers=["CPUExecutionProvider"])
+    assert session.get_inputs()[0].shape == [1, 3, "h", "w"]
+    out = session.run(None, {"images": np.full((1, 3, 256, 416), 114, np.float32)})[0]
+    assert out.shape == (1, len(grid(256, 416)[1]), 85) == (1, 2184, 85)
+    with pytest.raises(ValueError):
+        free_input_size(data[:1000])
+
+
+def test_letterbox_pads_only_to_the_stride():
+    """A 640x360 frame at 416: 416x234 of picture, padded to 416x256 with stride 32 (to
+    416x416 without), at the same scale."""
+    image = np.zeros((360, 640, 3), np.uint8)
+    square, r = letterbox(image, 416)
+    rect, r2 = letterbox(image, 416, 32)
+    assert square.shape == (1, 3, 416, 416) and rect.shape == (1, 3, 256, 416) and r == r2
+    np.testing.assert_array_equal(rect, square[:, :, :256])
+
+
+@pytest.mark.skipif(not HANOI.exists(), reason=f"real clip not available: {HANOI}")
+def test_a_rectangular_pass_finds_what_the_square_pass_finds(model):
+    """The shipped model runs on rectangles (stride 32); on a real frame its boxes are the
+    square pass's: as many within 10 %, each matched at IoU >= 0.7 but for a tenth (the
+    model's zero padding below the picture differs from the square's grey rows)."""
+    assert model.stride == 32
+    image = _frame(HANOI, 30)
+    rect = model.detect(image)
+    model.stride = 0
+    try:
+        square = model.detect(image)
+    finally:
+        model.stride = 32
+    assert abs(len(rect) - len(square)) <= 0.1 * len(square)
+    matched = iou(square.boxes, rect.boxes).max(axis=1) >= 0.7
+    assert matched.mean() >= 0.9
+
+
 def _onnx_model(path: Path, classes: int | None) -> Path:
     """A tiny ONNX model with a 1x3x416x416 input: YOLOX's output rows with `classes`
     class scores (a constant), or (None) the input passed through (not YOLOX)."""
@@ -181,6 +229,7 @@ def test_a_yolox_format_model_of_any_class_layout_is_read(tmp_path):
     model); its output of constants gives no box above the score floor."""
     m = AppearanceModel(_onnx_model(tmp_path / "m.onnx", 80), min_score=0.99)
     assert m.side == 416
+    assert m.stride == 0   # its output rows are fixed: square passes only
     assert len(m.detect(np.zeros((90, 160, 3), np.uint8))) == 0
 
 

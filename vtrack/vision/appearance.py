@@ -6,7 +6,8 @@ One pass (`AppearanceModel.detect`) on the whole frame, or on one window of it (
 `tiles`: the same model sees the vehicles of the window magnified):
 1. letterbox: resize keeping the aspect ratio to the model's input side S (read from the
    model), pad with grey 114 at the right and bottom (YOLOX's own preprocessing: BGR,
-   0-255, no mean or std);
+   0-255, no mean or std) up to the next multiple of 32 where the model runs on
+   rectangles (onnxsize.py frees its declared size), else to the S x S square;
 2. inference: onnxruntime when installed (twice as fast as OpenCV's DNN module on these
    2 cores: docs/DETECTOR.md), else OpenCV DNN;
 3. decode (YOLOX's head, anchor-free): at grid cell (i, j) of stride s in {8, 16, 32}, the
@@ -35,6 +36,7 @@ import numpy as np
 
 from vtrack.boxes import enclosing, intersection, iou
 from vtrack.errors import InputError
+from vtrack.vision.onnxsize import free_input_size
 
 # COCO class index -> vtrack class; the person (0) is read only as a rider
 COCO_VEHICLES = {1: "bicycle", 2: "car", 3: "motorcycle", 5: "bus", 7: "truck"}
@@ -120,30 +122,34 @@ def shipped_model() -> Path:
     return Path(str(resources.files("vtrack.models").joinpath(SHIPPED)))
 
 
-def letterbox(image: np.ndarray, side: int) -> tuple[np.ndarray, float]:
+def letterbox(image: np.ndarray, side: int, stride: int = 0) -> tuple[np.ndarray, float]:
     """`image` resized into a side x side square keeping its aspect ratio, padded with grey
-    at the right and bottom, as a (1, 3, side, side) float32 blob; and the scale r (model
-    pixels per image pixel)."""
+    at the right and bottom, as a (1, 3, H, W) float32 blob; and the scale r (model pixels
+    per image pixel). `stride` 0: H = W = side; else each side is padded only up to a
+    multiple of `stride` (YOLOv5's minimal-padding letterbox: a 16:9 frame at 416 is a
+    416x256 blob, 0.62 of the square's pixels and work, for a model whose input size is free)."""
     h, w = image.shape[:2]
     r = min(side / h, side / w)
     nw, nh = max(1, round(w * r)), max(1, round(h * r))
-    padded = np.full((side, side, 3), PAD_GREY, dtype=np.uint8)
+    bh, bw = (side, side) if not stride else (-(-nh // stride) * stride, -(-nw // stride) * stride)
+    padded = np.full((bh, bw, 3), PAD_GREY, dtype=np.uint8)
     padded[:nh, :nw] = cv2.resize(image, (nw, nh), interpolation=cv2.INTER_LINEAR)
-    blob = np.empty((1, 3, side, side), dtype=np.float32)
+    blob = np.empty((1, 3, bh, bw), dtype=np.float32)
     for channel, plane in enumerate(cv2.split(padded)):   # 4x faster than a transposed copy
         blob[0, channel] = plane
     return blob, r
 
 
-def grid(side: int) -> tuple[np.ndarray, np.ndarray]:
-    """YOLOX's anchor points over a side x side input: the cell (i, j) (N, 2) and the stride
-    (N,) of each output row, strides 8, 16, 32 in order, row-major within each."""
+def grid(height: int, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """YOLOX's anchor points over a height x width input (width None: square): the cell
+    (i, j) (N, 2) and the stride (N,) of each output row, strides 8, 16, 32 in order,
+    row-major within each."""
+    width = height if width is None else width
     cells, strides = [], []
     for s in STRIDES:
-        n = side // s
-        j, i = np.mgrid[0:n, 0:n]
+        j, i = np.mgrid[0:height // s, 0:width // s]
         cells.append(np.stack([i.ravel(), j.ravel()], axis=1))
-        strides.append(np.full(n * n, s))
+        strides.append(np.full(i.size, s))
     return np.concatenate(cells).astype(np.float32), np.concatenate(strides).astype(np.float32)
 
 
@@ -212,28 +218,25 @@ def _sha256(path: Path) -> str:
 
 class _Runner:
     """One inference engine over the model: onnxruntime when installed, else OpenCV DNN.
-    `input_side` is read from the model; calling it on a blob returns the raw rows (N, C)."""
+    `input_side` is read from the model; calling it on a blob returns the raw rows (N, C).
+    For onnxruntime the model's input height and width are made free (onnxsize.py), as
+    they are in OpenCV DNN, so a blob may be smaller than side x side."""
 
     def __init__(self, path: Path, threads: int, engine: str) -> None:
         self.engine = engine
         if engine == "onnxruntime":
             import onnxruntime as ort
 
+            model, shape = free_input_size(path.read_bytes())
+            if len(shape) != 4 or shape[1] != 3 or not shape[2] or shape[2] != shape[3]:
+                raise ValueError(f"input shape {list(shape)} is not 1x3xSxS")
+            self.input_side = shape[2]
             opts = ort.SessionOptions()
             opts.intra_op_num_threads = max(1, threads)
             opts.inter_op_num_threads = 1
             opts.log_severity_level = 3
-            self.session = ort.InferenceSession(str(path), opts,
-                                                providers=["CPUExecutionProvider"])
-            inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
-            if len(inputs) != 1 or len(outputs) != 1:
-                raise ValueError("not one input and one output")
-            self.input_name = inputs[0].name
-            shape = inputs[0].shape
-            if len(shape) != 4 or shape[1] != 3 or not isinstance(shape[2], int) \
-                    or shape[2] != shape[3]:
-                raise ValueError(f"input shape {shape} is not 1x3xSxS")
-            self.input_side = int(shape[2])
+            self.session = ort.InferenceSession(model, opts, providers=["CPUExecutionProvider"])
+            self.input_name = self.session.get_inputs()[0].name
         else:
             self.net = cv2.dnn.readNetFromONNX(str(path))
             self.input_side = _probe_side(self.net)
@@ -272,6 +275,8 @@ def default_engine() -> str:
 
 class AppearanceModel:
     """A YOLOX-format ONNX model (COCO's 80 classes) read once; `detect` runs one pass.
+    Where the model runs on a rectangular input (YOLOX does), a pass letterboxes only to
+    the next multiple of 32 (`stride`), not to the whole square.
 
     `path` None: the shipped YOLOX-Nano, whose SHA-256 is checked at load. A missing,
     corrupt or non-YOLOX file raises InputError naming it."""
@@ -290,7 +295,7 @@ class AppearanceModel:
         try:
             self.run = _Runner(self.path, threads, self.engine)
             side = self.run.input_side
-            self.cells, self.strides = grid(side)
+            self._grids = {(side, side): grid(side)}
             probe = self.run(np.full((1, 3, side, side), PAD_GREY, np.float32))
         except InputError:
             raise
@@ -298,22 +303,38 @@ class AppearanceModel:
             first = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ""
             raise InputError(f"{self.path}: not a readable YOLOX ONNX model ({first})"
                              ) from None
-        if probe.ndim != 2 or probe.shape[0] != len(self.strides):
+        if probe.ndim != 2 or probe.shape[0] != len(self._grids[side, side][1]):
             raise InputError(f"{self.path}: output {probe.shape} is not YOLOX's rows over "
                              f"strides 8, 16, 32 of a {side} input")
         if probe.shape[1] != 5 + COCO_CLASSES:
             raise InputError(f"{self.path}: {probe.shape[1] - 5} classes, not COCO's 80: no "
                              f"vehicle classes vtrack can read")
         self.side = side
+        self.stride = STRIDES[-1] if self._runs_rectangles() else 0
         self.min_score, self.nms_iou, self.cross_iou = min_score, nms_iou, cross_iou
+
+    def _runs_rectangles(self) -> bool:
+        """Whether the model runs on a side x (side / 2) input, with YOLOX's rows for it."""
+        height = max(STRIDES[-1], self.side // 2 // STRIDES[-1] * STRIDES[-1])
+        try:
+            out = self.run(np.full((1, 3, height, self.side), PAD_GREY, np.float32))
+        except Exception:   # a graph with a fixed size somewhere: square passes only
+            return False
+        return out.shape == (len(self._grid(height, self.side)[1]), 5 + COCO_CLASSES)
+
+    def _grid(self, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+        """grid(height, width), computed once per input shape."""
+        if (height, width) not in self._grids:
+            self._grids[height, width] = grid(height, width)
+        return self._grids[height, width]
 
     def detect(self, image: np.ndarray, window: Window | None = None) -> AppearanceBoxes:
         """The road users in the frame `image` (BGR uint8), or in its `window` (those the
         window cuts dropped), in the frame's pixels."""
         x, y = (0, 0) if window is None else window[:2]
         crop = image if window is None else image[y:y + window[3], x:x + window[2]]
-        blob, r = letterbox(crop, self.side)
-        boxes, scores, coco = decode(self.run(blob), self.cells, self.strides,
+        blob, r = letterbox(crop, self.side, self.stride)
+        boxes, scores, coco = decode(self.run(blob), *self._grid(*blob.shape[2:]),
                                      self.min_score)
         boxes /= r
         boxes[:, :2] += (x, y)
