@@ -276,6 +276,29 @@ def test_segmented_gives_the_frame_in_hand_before_a_source_error():
     assert got == [1, 2]
 
 
+def test_requested_asks_for_each_pass_ahead_and_keeps_the_frames_before_an_error():
+    """`requested` hands each frame to the detector as it is read and passes it on
+    `ahead` frames later (the pass's slack), in order; a source error still gives the
+    frames read before it."""
+    from types import SimpleNamespace
+
+    from vtrack.app.track import requested
+    from vtrack.errors import InputError
+
+    asked: list[int] = []
+    det = SimpleNamespace(request=asked.append)
+    seen = []
+    for f, _ in requested(_frames(6), det, ahead=3):
+        seen.append((f.index, list(asked)))
+    assert [k for k, _ in seen] == list(range(1, 7))
+    assert seen[0][1] == [1, 2, 3, 4] and seen[-1][1] == list(range(1, 7))
+    got = []
+    with pytest.raises(InputError, match="after frame 4"):
+        for f, _ in requested(_frames(9, fail_after=4), SimpleNamespace(request=id), 8):
+            got.append(f.index)
+    assert got == [1, 2, 3, 4]
+
+
 def test_opencv_threads_during_a_run(synth_video, tmp_path, monkeypatch):
     """The run uses OpenCV with `cv_threads` threads (image stages included, in the worker
     thread) and leaves OpenCV's setting as it found it."""

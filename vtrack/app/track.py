@@ -38,6 +38,9 @@ from vtrack.vision.appearance import VEHICLE_CLASSES
 from vtrack.io.sources import parse_source
 
 
+APPEARANCE_AHEAD = 8   # frames read before they go on to be tracked: the passes' slack
+
+
 def _warn(message: str) -> None:
     print(f"warning: {message}", file=sys.stderr)
 
@@ -222,7 +225,7 @@ class TrackJob:
             else:
                 frames = ((frame, False) for frame in source)
             if hasattr(detector, "request"):   # the appearance model sees each frame read
-                frames = requested(frames, detector)
+                frames = requested(frames, detector, 0 if self.times else APPEARANCE_AHEAD)
             if self.times is None:
                 # closing: the worker stops with the loop, also when the loop body raises
                 yield stack.enter_context(contextlib.closing(segmented(frames, detector)))
@@ -469,13 +472,28 @@ def looks(ft: FrameTracks, dets: Any) -> tuple[Any, Any]:
     return cls, score
 
 
-def requested(frames: Iterable[tuple[Any, bool]], detector: Any
+def requested(frames: Iterable[tuple[Any, bool]], detector: Any, ahead: int = 0
               ) -> Iterator[tuple[Any, bool]]:
     """`frames`, each handed to `detector.request` (its appearance pass starts in the
-    detector's worker) as it is read, in this thread, before it goes on."""
-    for frame, prepared in frames:
-        detector.request(frame.image)
-        yield frame, prepared
+    detector's worker) as it is read, in this thread, and passed on `ahead` frames later:
+    a pass has the time of `ahead` more frames to finish before its frame is located, so
+    the tracking waits less for it (the passes' frames depend on the frame numbers alone:
+    the results do not change). A source that fails (InputError) still gives the frames
+    read before the error is raised."""
+    held: deque[tuple[Any, bool]] = deque()
+    failure: InputError | None = None
+    try:
+        for frame, prepared in frames:
+            detector.request(frame.image)
+            held.append((frame, prepared))
+            if len(held) > ahead:
+                yield held.popleft()
+    except InputError as exc:
+        failure = exc
+    while held:
+        yield held.popleft()
+    if failure is not None:
+        raise failure
 
 
 def track_video(video: str | Path, out_dir: str | Path, cfg: AppConfig,
