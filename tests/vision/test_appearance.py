@@ -435,6 +435,30 @@ def test_the_schedule_puts_the_tiles_half_way_between_whole_frame_passes():
     assert plain.view(4) is None
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread niceness is Linux's")
+def test_the_appearance_worker_yields_the_cores_to_the_pipeline():
+    """The passes run in a worker thread WORKER_NICENESS nicer than the caller (the tracking
+    and the image stages go first); the caller's own priority is left as it was."""
+    import os
+    import threading
+
+    from vtrack.vision.hybrid import WORKER_NICENESS, FusedDetector
+
+    class _Model:
+        side = 416
+
+    def nice() -> int:
+        return os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+
+    before = nice()
+    d = FusedDetector(None, _Model(), 3)
+    try:
+        assert d._pool.submit(nice).result() == min(19, before + WORKER_NICENESS)
+    finally:
+        d.close()
+    assert nice() == before
+
+
 # ------------------------------------------------------------------ through the run
 
 

@@ -19,6 +19,9 @@ long it stands.
 
 from __future__ import annotations
 
+import os
+import sys
+import threading
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
@@ -29,6 +32,24 @@ from vtrack.boxes import centre
 from vtrack.vision.appearance import AppearanceModel, Window, tiles
 from vtrack.vision.detect import Detections, DetectorConfig, Foreground, MotionDetector
 from vtrack.vision.fusion import Fused, follow, renew
+
+WORKER_NICENESS = 10   # the appearance worker's scheduling niceness above the process's
+
+
+def yield_to_the_pipeline() -> None:
+    """Lower the calling thread's scheduling priority by WORKER_NICENESS (Linux keeps a
+    nice value per thread): the appearance passes, read ahead (app/track.py), take the
+    cores' idle time before the tracking's and the image stages', which every frame waits
+    for. Elsewhere than on Linux (where a thread id is no process id) nothing changes."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid)
+                       + WORKER_NICENESS)
+    except (AttributeError, OSError):
+        pass
+
 
 class FusedDetector:
     """MOG2 blobs and appearance boxes fused, behind the interface of MotionDetector (the
@@ -48,7 +69,8 @@ class FusedDetector:
         self.every = max(1, every)
         self.windows = list(windows or [])
         self.motion_blobs = motion_blobs
-        self._pool = (ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtrack-appearance")
+        self._pool = (ThreadPoolExecutor(max_workers=1, thread_name_prefix="vtrack-appearance",
+                                         initializer=yield_to_the_pipeline)
                       if threaded else None)
         self._pending: deque[Future | np.ndarray | None] = deque()
         self._requested = 0
