@@ -9,13 +9,20 @@ children, and what that work allows: a run that needs C ms of CPU a frame on N c
 at least C / N ms a frame, so the ratio cannot exceed N x (decode-only ms a frame) / C,
 however the work is spread over threads and processes.
 
+With `--against-mog2 N` it also times N interleaved rounds of the tracked run and of the
+same run with `kind = "mog2"` (MOG2 alone) and prints the wall-time ratio: what the
+configured detector costs against MOG2 alone, on this machine, now. `--video` benchmarks a
+given video (a real clip) instead of a synthetic one.
+
     .venv/bin/python scripts/bench_pipeline.py [--frames 300] [--scene mast] [--size 1280x720]
-                                               [--config CFG]
+                                               [--config CFG] [--video PATH]
+                                               [--against-mog2 ROUNDS]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import os
@@ -73,6 +80,41 @@ def _track(video: Path, out: Path, cfg: config.AppConfig, frames: int) -> profil
     return _timed(lambda: track_video(video, out, cfg, TrackOptions(max_frames=frames)))
 
 
+def _render(out: Path, scene: str, frames: int, width: int, height: int) -> Path:
+    """A synthetic clip of `scene` (every nuisance; `overhead`: the plain overhead scene),
+    25 fps, rendered into `out`; its video's path."""
+    if scene == "overhead":
+        from vtrack.sim.traffic import render_scene
+
+        render_scene(out, frames=frames, vehicles=20, width=width, height=height, fps=25.0,
+                     seed=0)
+    else:
+        from vtrack.sim.clip import render_preset
+        from vtrack.sim.nuisance import parse_nuisances
+
+        render_preset(out, scene, frames=frames, width=width, height=height, fps=25.0, seed=0,
+                      nuisances=parse_nuisances("all"))
+    return out / "video.avi"
+
+
+def _frames(video: Path, most: int) -> int:
+    """The frames of `video`, at most `most`."""
+    with VideoReader(video, max_frames=most) as reader:
+        return sum(1 for _ in reader)
+
+
+def against_mog2(video: Path, out: Path, cfg: config.AppConfig, frames: int, rounds: int
+                 ) -> tuple[list[float], list[float]]:
+    """Wall seconds of `rounds` interleaved tracked runs with `cfg` and with MOG2 alone (the
+    same configuration, `kind = "mog2"`), start-up included: (cfg's, MOG2's)."""
+    mog2 = dataclasses.replace(cfg, detector=dataclasses.replace(cfg.detector, kind="mog2"))
+    walls: tuple[list[float], list[float]] = ([], [])
+    for r in range(rounds):
+        for runs, c, name in zip(walls, (cfg, mog2), ("config", "mog2")):
+            runs.append(_track(video, out / f"{name}{r}", c, frames).wall)
+    return walls
+
+
 def stage_costs(video: Path, out: Path, cfg: config.AppConfig, frames: int,
                 cpu: bool = False) -> dict[str, Any]:
     """The stage table of `vtrack track --profile` (app/profile.py) on `video`. `cpu`: each
@@ -108,6 +150,11 @@ def main() -> None:
     ap.add_argument("--size", default="1280x720", type=_size, help="WIDTHxHEIGHT of the "
                     "video (default 1280x720)")
     ap.add_argument("--config", help="TOML config for the tracked run (default config if absent)")
+    ap.add_argument("--video", type=Path, help="benchmark this video (e.g. a real clip) "
+                    "instead of a synthetic one; --scene and --size are then unused")
+    ap.add_argument("--against-mog2", type=int, default=0, metavar="ROUNDS",
+                    help="also time ROUNDS interleaved runs of the tracked run and of MOG2 "
+                         "alone, and print their wall-time ratio")
     ap.add_argument("--stage-clock", choices=("wall", "cpu"), default="wall",
                     help="time the stage table by the wall clock (default) or by the CPU "
                          "time of the thread that runs it (robust to a busy machine)")
@@ -116,27 +163,28 @@ def main() -> None:
     cfg = config.load(args.config)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        if args.scene == "overhead":
-            from vtrack.sim.traffic import render_scene
-
-            render_scene(tmp / "synth", frames=args.frames, vehicles=20, width=width,
-                         height=height, fps=25.0, seed=0)
+        if args.video is not None:
+            if not args.video.is_file():
+                ap.error(f"{args.video}: no such video")
+            video = args.video
+            with VideoReader(video, max_frames=1) as reader:
+                width, height = reader.info.width, reader.info.height
         else:
-            from vtrack.sim.clip import render_preset
-            from vtrack.sim.nuisance import parse_nuisances
-
-            render_preset(tmp / "synth", args.scene, frames=args.frames, width=width,
-                          height=height, fps=25.0, seed=0, nuisances=parse_nuisances("all"))
-        video = tmp / "synth" / "video.avi"
-        n = args.frames - 1
-        decode = _decode(video, args.frames) - _decode(video, 1)
-        track = _track(video, tmp / "out", cfg, args.frames) - _track(video, tmp / "o1", cfg, 1)
-        stages = stage_costs(video, tmp / "profiled", cfg, args.frames,
+            video = _render(tmp / "synth", args.scene, args.frames, width, height)
+        frames = _frames(video, args.frames)
+        n = frames - 1
+        decode = _decode(video, frames) - _decode(video, 1)
+        track = _track(video, tmp / "out", cfg, frames) - _track(video, tmp / "o1", cfg, 1)
+        stages = stage_costs(video, tmp / "profiled", cfg, frames,
                              args.stage_clock == "cpu")
-        waits = {busy: decoder_wait(video, args.frames, WORK_MS, busy) for busy in (False, True)}
+        waits = {busy: decoder_wait(video, frames, WORK_MS, busy) for busy in (False, True)}
+        walls = (against_mog2(video, tmp / "against", cfg, frames, args.against_mog2)
+                 if args.against_mog2 > 0 else None)
     cores = len(os.sched_getaffinity(0))
-    print(f"video: {width}x{height} MJPG (vtrack synth --scene {args.scene}), "
-          f"{args.frames} frames; detect_width {cfg.detector.detect_width}")
+    source = (str(args.video) if args.video is not None
+              else f"MJPG (vtrack synth --scene {args.scene})")
+    print(f"video: {width}x{height} {source}, {frames} frames; detector {cfg.detector.kind}, "
+          f"detect_width {cfg.detector.detect_width}")
     print(f"decode only : {n / decode.wall:8.1f} fps")
     print(f"tracked     : {n / track.wall:8.1f} fps")
     print(f"ratio tracked/decode: {decode.wall / track.wall:.3f}")
@@ -166,6 +214,12 @@ def main() -> None:
     print(f"  per thread: align (prepare, stabilise, gain) {align:.2f} ms; subtract (MOG2 "
           f"and the rest) {subtract:.2f} ms; blobs, split, tracker, outputs (main) "
           f"{main:.2f} ms")
+    if walls is not None:
+        ours, mog2 = walls
+        print(f"wall time, {cfg.detector.kind} against MOG2 alone, {len(ours)} interleaved "
+              f"rounds (s, start-up included): "
+              + "; ".join(f"{a:.2f} / {b:.2f}" for a, b in zip(ours, mog2)))
+        print(f"ratio {cfg.detector.kind} / MOG2 alone: {sum(ours) / sum(mog2):.3f}")
 
 if __name__ == "__main__":
     main()
