@@ -97,10 +97,10 @@ def _render(out: Path, scene: str, frames: int, width: int, height: int) -> Path
     return out / "video.avi"
 
 
-def _frames(video: Path, most: int) -> int:
-    """The frames of `video`, at most `most`."""
+def _frames(video: Path, most: int) -> tuple[int, int, int]:
+    """The number of frames of `video` (at most `most`), its width and its height."""
     with VideoReader(video, max_frames=most) as reader:
-        return sum(1 for _ in reader)
+        return sum(1 for _ in reader), reader.info.width, reader.info.height
 
 
 def against_mog2(video: Path, out: Path, cfg: config.AppConfig, frames: int, rounds: int
@@ -167,11 +167,10 @@ def main() -> None:
             if not args.video.is_file():
                 ap.error(f"{args.video}: no such video")
             video = args.video
-            with VideoReader(video, max_frames=1) as reader:
-                width, height = reader.info.width, reader.info.height
-        else:
+            frames, width, height = _frames(video, args.frames)
+        else:   # rendered with exactly --frames frames
             video = _render(tmp / "synth", args.scene, args.frames, width, height)
-        frames = _frames(video, args.frames)
+            frames = args.frames
         n = frames - 1
         decode = _decode(video, frames) - _decode(video, 1)
         track = _track(video, tmp / "out", cfg, frames) - _track(video, tmp / "o1", cfg, 1)
