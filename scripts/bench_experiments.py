@@ -1,21 +1,24 @@
 """Wall time of the seed experiments with the Monte Carlo runs stepped together (the harness,
 vtrack.estimation.montecarlo, and the INS experiment's batched filter) against one run at a
 time (run(runs, seed, batch=False): the per-run loop, each run a one-track filter of the same
-code), measured in the same process; and the cost of one update per run of each filter kind,
-a stack of runs against a loop over one-track filters.
+code), measured in the same process; the stacked runs on every worker process
+(vtrack.estimation.parallel: the filters and cases side by side) against one; and the cost
+of one update per run of each filter kind, a stack of runs against a loop over one-track
+filters.
 
     .venv/bin/python scripts/bench_experiments.py [--names bearings-2 ...] [--runs 100]
         [--loop-runs N] [--seed 0] [--no-default] [--kinds ekf,iekf,...]
         [--update-runs 100] [--steps 100] [--skip-experiments] [--skip-updates]
 
-Experiments: each at its default number of runs and at --runs, stacked and one run at a
-time. The per-run loop is slow (bearings-2 takes minutes per 10 runs); --loop-runs N
-measures it at N runs instead and prints the time scaled by runs / N, marked "scaled"
-(the per-run loop costs the same per run). Updates: the bearings-2 scenario (two bearing
+Experiments: each at its default number of runs and at --runs, stacked on the default
+workers (parallel.workers(): the CPUs) and on one (VTRACK_WORKERS=1), and one run at a time
+on the default workers. The per-run loop is slow (bearings-2 takes minutes per 10 runs);
+--loop-runs N measures it at N runs instead and prints the time scaled by runs / N, marked
+"scaled" (the per-run loop costs the same per run). Updates: the bearings-2 scenario (two bearing
 sensors, Wiener velocity, the toolbox's turning path) over --steps steps of --update-runs
 runs; the figure is the mean CPU time of update() per run, and the ratio loop / stacked.
-The wall time counts the waits on a machine shared with other work; the CPU time of the
-process does not (it still varies with what shares the cores).
+The wall time counts the waits on a machine shared with other work; the CPU time (of the
+process and its workers) does not (it still varies with what shares the cores).
 """
 
 from __future__ import annotations
@@ -23,55 +26,85 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import os
+import resource
 import time
 
 import numpy as np
 
+from vtrack.estimation.parallel import WORKERS_VARIABLE, workers
 from vtrack.experiments import load_all
 
 UPDATE_KINDS = ("ekf", "iekf", "ukf", "ckf", "iplf", "srukf", "crukf", "ankf1", "ankf2",
                 "fuzzy-r", "fuzzy-q", "siim-ekf")
 
 
+def _cpu() -> float:
+    """CPU seconds of this process and of its ended worker processes."""
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + kids.ru_utime + kids.ru_stime
+
+
 def _timed(fn, *args) -> tuple[float, float]:
     """(wall, CPU) seconds of fn(*args), its output swallowed."""
-    t0, c0 = time.perf_counter(), time.process_time()
+    t0, c0 = time.perf_counter(), _cpu()
     with contextlib.redirect_stdout(io.StringIO()):
         fn(*args)
-    return time.perf_counter() - t0, time.process_time() - c0
+    return time.perf_counter() - t0, _cpu() - c0
+
+
+@contextlib.contextmanager
+def _one_worker():
+    """VTRACK_WORKERS=1 inside the block."""
+    before = os.environ.get(WORKERS_VARIABLE)
+    os.environ[WORKERS_VARIABLE] = "1"
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ[WORKERS_VARIABLE]
+        else:
+            os.environ[WORKERS_VARIABLE] = before
 
 
 def experiment_times(name: str, runs: int, seed: int, loop_runs: int | None
-                     ) -> tuple[tuple[float, float], tuple[float, float], int]:
-    """((wall, CPU) stacked at `runs`, (wall, CPU) of the per-run loop at min(runs,
-    loop_runs), the number of runs of the loop measurement)."""
+                     ) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float],
+                                int]:
+    """((wall, CPU) stacked at `runs` on the default workers, the same on one worker,
+    (wall, CPU) of the per-run loop at min(runs, loop_runs), the number of runs of the loop
+    measurement)."""
     run = load_all()[name].run
     stacked = _timed(run, runs, seed)
+    with _one_worker():
+        alone = _timed(run, runs, seed)
     n_loop = runs if loop_runs is None else min(runs, loop_runs)
     loop = _timed(lambda: run(n_loop, seed, batch=False))
-    return stacked, loop, n_loop
+    return stacked, alone, loop, n_loop
 
 
 def bench_experiments(names: list[str], runs: int, seed: int, loop_runs: int | None,
                       default: bool) -> None:
     experiments = load_all()
-    totals = np.zeros(4)                    # stacked wall, CPU; loop wall, CPU at `runs`
+    n = workers()
+    totals = np.zeros(6)        # stacked wall, CPU; on one worker; loop wall, CPU at `runs`
     for name in names:
         sizes = ([experiments[name].default_runs] if default else []) + [runs]
         for size in dict.fromkeys(sizes):
-            stacked, loop, n_loop = experiment_times(name, size, seed, loop_runs)
+            stacked, alone, loop, n_loop = experiment_times(name, size, seed, loop_runs)
             scale = size / n_loop
             note = "" if n_loop == size else f" (measured at {n_loop} runs, scaled)"
             print(f"experiment {name} runs {size}: stacked {stacked[0]:.1f} s wall "
-                  f"{stacked[1]:.1f} s CPU, one run at a time {scale * loop[0]:.1f} s wall "
-                  f"{scale * loop[1]:.1f} s CPU{note}, CPU ratio "
+                  f"{stacked[1]:.1f} s CPU on {n} workers, {alone[0]:.1f} s wall {alone[1]:.1f} "
+                  f"s CPU on 1 (wall ratio {alone[0] / stacked[0]:.2f}), one run at a time "
+                  f"{scale * loop[0]:.1f} s wall {scale * loop[1]:.1f} s CPU{note}, CPU ratio "
                   f"{scale * loop[1] / stacked[1]:.1f}", flush=True)
             if size == runs:
-                totals += [stacked[0], stacked[1], scale * loop[0], scale * loop[1]]
+                totals += [*stacked, *alone, scale * loop[0], scale * loop[1]]
     if names:
         print(f"all {len(names)} experiments at {runs} runs: stacked {totals[0]:.1f} s wall "
-              f"{totals[1]:.1f} s CPU, one run at a time {totals[2]:.1f} s wall {totals[3]:.1f} "
-              f"s CPU", flush=True)
+              f"{totals[1]:.1f} s CPU on {n} workers, {totals[2]:.1f} s wall {totals[3]:.1f} s "
+              f"CPU on 1 (wall ratio {totals[2] / totals[0]:.2f}), one run at a time "
+              f"{totals[4]:.1f} s wall {totals[5]:.1f} s CPU", flush=True)
 
 
 def _bearings_case(runs: int, steps: int):

@@ -1,6 +1,7 @@
 """`vtrack experiment ins`: INTERFACE.md schema, determinism and the example run."""
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -49,6 +50,16 @@ def test_one_run_at_a_time_gives_the_batched_json(short):
     one) gives the batched JSON within the golden tests' tolerance."""
     a, b = ins.run(2, 5).summary, ins.run(2, 5, batch=False).summary
     assert not json_differences(a, b)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="worker processes need fork")
+def test_the_cases_in_two_workers_give_the_json_of_one(short, monkeypatch):
+    """The headline and the cases side by side (parallel.map_tasks): the very same numbers
+    as one after the other in one process."""
+    monkeypatch.setenv("VTRACK_WORKERS", "1")
+    alone = json.dumps(ins.run(2, 5).summary)
+    monkeypatch.setenv("VTRACK_WORKERS", "2")
+    assert json.dumps(ins.run(2, 5).summary) == alone
 
 
 def test_example_run_has_what_the_plot_needs(short):

@@ -242,8 +242,9 @@ def test_ablation(tmp_path):
 
 
 def test_bench_experiments():
-    """Two runs of the ankf experiment stacked and one run at a time (the loop measured at
-    one run and scaled), and the per-update cost of two kinds: a line each with its figures."""
+    """Two runs of the ankf experiment stacked (on the default workers and on one) and one run
+    at a time (the loop measured at one run and scaled), and the per-update cost of two
+    kinds: a line each with its figures."""
     out = _run("scripts/bench_experiments.py", "--names", "ankf", "--runs", "2",
                "--loop-runs", "1", "--no-default", "--kinds", "iekf,srukf",
                "--update-runs", "2", "--steps", "3")
@@ -252,5 +253,8 @@ def test_bench_experiments():
         assert "stacked" in line and "ratio" in line and all(v > 0 for v in _numbers(line))
     exp = next(l for l in out.splitlines() if l.startswith("experiment ankf runs 2:"))
     assert "measured at 1 runs, scaled" in exp and "CPU ratio" in exp
-    assert re.search(r"all 1 experiments at 2 runs: stacked [0-9.]+ s wall [0-9.]+ s CPU, one "
-                     r"run at a time [0-9.]+ s wall [0-9.]+ s CPU", out), out
+    assert re.search(r"s CPU on [0-9]+ workers, [0-9.]+ s wall [0-9.]+ s CPU on 1 \(wall ratio "
+                     r"[0-9.]+\)", exp), exp
+    assert re.search(r"all 1 experiments at 2 runs: stacked [0-9.]+ s wall [0-9.]+ s CPU on "
+                     r"[0-9]+ workers, [0-9.]+ s wall [0-9.]+ s CPU on 1 \(wall ratio [0-9.]+\), "
+                     r"one run at a time [0-9.]+ s wall [0-9.]+ s CPU", out), out

@@ -22,6 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from vtrack.estimation.parallel import workers
     from vtrack.experiments import load_all
 
     registry = load_all()
@@ -36,6 +37,10 @@ def run(args: argparse.Namespace) -> int:
                          f"(known: {', '.join(registry)})")
     if args.runs is not None and args.runs < 1:
         raise InputError("experiment: --runs must be a positive integer")
+    try:
+        workers()
+    except ValueError as exc:
+        raise InputError(f"experiment: {exc}") from None
     exp = registry[args.name]
     result = exp.run(args.runs or exp.default_runs, args.seed)
     if args.plot:

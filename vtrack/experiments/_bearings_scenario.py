@@ -24,6 +24,7 @@ from vtrack.estimation.montecarlo import (
     run_rmse,
     squared_error,
 )
+from vtrack.estimation.parallel import map_tasks
 from vtrack.experiments import ExampleRun
 from vtrack.filter_kinds import make_filter
 
@@ -350,7 +351,8 @@ class CaseRun:
 def simulate(scenario: Scenario, seeds: list[int],
              filters: dict[str, dict[str, object]], batch: bool = True) -> CaseRun:
     """Truth, measurements, the PCRLB and every filter of `filters` ({kind: options}) on the
-    same runs (paired); batch as in run_filter."""
+    same runs (paired), the filters side by side in worker processes (parallel.map_tasks);
+    batch as in run_filter."""
     if scenario.truth == "turn":
         truth = turning_truth(seeds)
         x0s = np.broadcast_to(M0, (len(seeds), 4)).copy()
@@ -365,9 +367,9 @@ def simulate(scenario: Scenario, seeds: list[int],
                                scenario.dt, scenario.prior_cov)
     motion = WienerVelocity(scenario.q_filter)
     meas = Bearings(scenario.sensors, scenario.sigma_filter)
-    runs = {kind: run_filter(kind, motion, meas, Z, x0s, scenario.prior_cov, batch,
-                             dt=scenario.dt, **opts)
-            for kind, opts in filters.items()}
+    runs = dict(zip(filters, map_tasks(
+        lambda kind: run_filter(kind, motion, meas, Z, x0s, scenario.prior_cov, batch,
+                                dt=scenario.dt, **filters[kind]), list(filters))))
     return CaseRun(scenario, seeds, truth, Z, x0s, bound_var, runs, dict(filters))
 
 

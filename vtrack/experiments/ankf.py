@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from vtrack.estimation.bounds import chi2_band
+from vtrack.estimation.parallel import map_tasks
 from vtrack.experiments import ExperimentResult, register
 from vtrack.experiments import _bearings_scenario as scn
 
@@ -73,8 +74,11 @@ def ankf(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
     seeds = scn.run_seeds(seed, runs)
     bodies = {}
     example = None
-    for name, (scenario, filters, description) in scenarios().items():
-        case = scn.simulate(scenario, seeds, filters, batch)
+    every = scenarios()
+    # the scenarios side by side (parallel.map_tasks)
+    simulated = map_tasks(lambda name: scn.simulate(every[name][0], seeds, every[name][1],
+                                                    batch), list(every))
+    for (name, (scenario, filters, description)), case in zip(every.items(), simulated):
         bodies[name] = {
             "description": description,
             "parameters": scenario.parameters(),

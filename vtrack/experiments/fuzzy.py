@@ -37,6 +37,7 @@ from vtrack.estimation.montecarlo import (
     run_rmse,
     squared_error,
 )
+from vtrack.estimation.parallel import map_tasks
 from vtrack.experiments import ExampleRun, ExperimentResult, register
 from vtrack.filter_kinds import make_filter
 
@@ -159,21 +160,25 @@ def run_filters(case: FuzzyCase, u: np.ndarray, z: np.ndarray, xhat0: np.ndarray
     """Every kind of KINDS, and the model-matched reference KF 'kf-matched' (true Q, true R
     of each step through a before-step hook, u known), over the runs' inputs u (R, STEPS, 3)
     and measurements z (R, STEPS, 3) from the priors xhat0 (R, 6) (the harness; batch as in
-    monte_carlo)."""
+    monte_carlo), side by side in worker processes (parallel.map_tasks)."""
     U = u if case.u_known else None
-    out = {kind: monte_carlo(kind, lambda r, kind=kind: _build(kind, case, xhat0[r]), z, T, U,
-                             RECORD, batch=batch) for kind in KINDS}
     schedule = np.array([case.r_at((k + 1) * T) for k in range(STEPS)])
 
     def true_r(f: GaussianFilter, k: int) -> None:
         if f.measurement.R[0, 0] != schedule[k]:
             f.measurement = position_sensor(float(schedule[k]))
 
-    out["kf-matched"] = monte_carlo(
-        "kf", lambda r: make_filter("kf", ConstantVelocityInput3D(Q_TRUE),
-                                    position_sensor(schedule[0]), xhat0[r], P0),
-        z, T, u, RECORD, before_step=true_r, batch=batch)
-    return out
+    def run_kind(kind: str) -> MonteCarloRun:
+        if kind == "kf-matched":
+            return monte_carlo(
+                "kf", lambda r: make_filter("kf", ConstantVelocityInput3D(Q_TRUE),
+                                            position_sensor(schedule[0]), xhat0[r], P0),
+                z, T, u, RECORD, before_step=true_r, batch=batch)
+        return monte_carlo(kind, lambda r: _build(kind, case, xhat0[r]), z, T, U, RECORD,
+                           batch=batch)
+
+    kinds = KINDS + ("kf-matched",)
+    return dict(zip(kinds, map_tasks(run_kind, kinds)))
 
 
 def summary(kind: str, run: MonteCarloRun, truth: np.ndarray) -> dict[str, Any]:
@@ -284,11 +289,14 @@ DESCRIPTION = (
 
 @register("fuzzy", "seed 003: KF vs fuzzy-adaptive R / Q Kalman filters", default_runs=50)
 def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
-    head, example = run_case(HEADLINE, runs, seed, keep_example=True, batch=batch)
+    # the headline and every case side by side (parallel.map_tasks)
+    (head, example), *others = map_tasks(
+        lambda case: run_case(case, runs, seed, keep_example=case is HEADLINE, batch=batch),
+        [HEADLINE, *CASES.values()])
     for kind, errs in PAPER_POSITION_ERRORS.items():
         head["results"][kind]["paper"] = {f"{axis}_error_cm_at_5s_frames": v
                                           for axis, v in errs.items()}
-    cases = {name: run_case(case, runs, seed, batch=batch)[0] for name, case in CASES.items()}
+    cases = {name: out for name, (out, _) in zip(CASES, others)}
     summary = {
         "experiment": "fuzzy",
         "description": DESCRIPTION,

@@ -22,6 +22,7 @@ import numpy as np
 
 from vtrack.estimation.bounds import chi2_band, nees, paired_difference
 from vtrack.estimation.montecarlo import nees_summary, run_generators, run_rmse
+from vtrack.estimation.parallel import map_tasks
 from vtrack.experiments import ExampleRun, ExperimentResult, register
 from vtrack.ins.error_state_filter import InsFilterConfig, run_ins_filter
 from vtrack.ins.so3 import dcm_to_euler, exp_so3
@@ -424,38 +425,44 @@ def _describe(scn: Scenario, cfg: InsFilterConfig) -> dict[str, Any]:
     return d
 
 
-@register("ins", "seed 001 sec. 4: GPS-aided strapdown INS, with vs without magnetometer",
-          default_runs=8)
-def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
-    every = HEADLINE.gps().every
-    data = simulate(HEADLINE, runs, seed)
-    head = run_variant(data, HEADLINE, filter_config(HEADLINE, 18),
-                       ("mag", "no-mag", "mag-paper"), stacked=batch)
-    paper_rows = head.pop("mag-paper")
+def _headline(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
+    head = run_variant(data, HEADLINE, filter_config(HEADLINE, 18), stacked=batch)
     results = {label: metrics(s, data) for label, s in head.items()}
     _compare(results, head)
-    cases: dict[str, Any] = {}
+    return results
+
+
+def _nine_state(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
     nine = run_variant(data, HEADLINE, filter_config(HEADLINE, 9), stacked=batch)
     res9 = {label: metrics(s, data) for label, s in nine.items()}
     _compare(res9, nine)
-    cases["nine-state"] = {
-        "description": "the paper's 9-state filter [dr, dv, eps] (eqs. 28-33): sensor biases "
-                       "covered by Q only (q = sigma_noise^2 + sigma_bias^2 * 10 s), heading "
-                       "noise 1 deg", "results": res9}
+    return {"description": "the paper's 9-state filter [dr, dv, eps] (eqs. 28-33): sensor "
+                           "biases covered by Q only (q = sigma_noise^2 + sigma_bias^2 * 10 s), "
+                           "heading noise 1 deg", "results": res9}
+
+
+def _fifteen_state(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
     fifteen = run_variant(data, HEADLINE, filter_config(HEADLINE, 15), ("mag",),
                           stacked=batch)
-    cases["fifteen-state"] = {
-        "description": "15 states (+ accel and gyro bias; the magnetometer bias is not "
-                       "modelled, heading noise 1 deg white). Without the magnetometer it is "
-                       "identical to the headline's no-mag (the mag-bias states are then "
-                       "decoupled), so only 'mag' is run",
-        "results": {"mag": metrics(fifteen["mag"], data)}}
-    cases["paper-attitude"] = {
-        "description": "18 states, attitude rows exactly as eqs. 36-37 at every GPS epoch "
-                       "(accelerometer roll/pitch even in turns, heading compensated with "
-                       "them); same data as the headline",
-        "results": {"mag": metrics(paper_rows, data)}}
-    # GPS outages (UAV) -- also the example run for plots/rerun
+    return {"description": "15 states (+ accel and gyro bias; the magnetometer bias is not "
+                           "modelled, heading noise 1 deg white). Without the magnetometer it "
+                           "is identical to the headline's no-mag (the mag-bias states are then "
+                           "decoupled), so only 'mag' is run",
+            "results": {"mag": metrics(fifteen["mag"], data)}}
+
+
+def _paper_attitude(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
+    paper = run_variant(data, HEADLINE, filter_config(HEADLINE, 18), ("mag-paper",),
+                        stacked=batch)
+    return {"description": "18 states, attitude rows exactly as eqs. 36-37 at every GPS epoch "
+                           "(accelerometer roll/pitch even in turns, heading compensated with "
+                           "them); same data as the headline",
+            "results": {"mag": metrics(paper["mag-paper"], data)}}
+
+
+def _outage(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
+    """GPS outages (UAV); also the example run for plots and rerun (key `example`)."""
+    every = OUTAGE.gps().every
     ob = simulate(OUTAGE, runs, seed)
     ocfg = filter_config(OUTAGE, 18)
     oser = run_variant(ob, OUTAGE, ocfg, example_every=every, stacked=batch)
@@ -464,20 +471,42 @@ def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
         ores[label] = metrics(s, ob)
         ores[label].update(outage_metrics(s, ob, OUTAGE.outages))
     _compare(ores, oser)
-    cases["outage"] = {"description": f"UAV {OUTAGE.duration:.0f} s, GPS outages "
-                       f"{list(OUTAGE.outages)} s (attitude rows continue), 18 states",
-                       "config": _describe(OUTAGE, ocfg), "results": ores}
-    example = example_run(ob, oser, every)
-    # the car drive (the paper's offline test)
+    return {"description": f"UAV {OUTAGE.duration:.0f} s, GPS outages "
+                           f"{list(OUTAGE.outages)} s (attitude rows continue), 18 states",
+            "config": _describe(OUTAGE, ocfg), "results": ores,
+            "example": example_run(ob, oser, every)}
+
+
+def _car(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
+    """The car drive (the paper's offline test)."""
     cb = simulate(CAR, runs, seed)
     ccfg = filter_config(CAR, 18)
     cser = run_variant(cb, CAR, ccfg, stacked=batch)
     cres = {label: metrics(s, cb) for label, s in cser.items()}
     _compare(cres, cser)
-    cases["car"] = {"description": f"car drive {CAR.duration:.0f} s (10-18 m/s, 90 deg "
-                    "corners, a stop), 18 states; paper: path diff 2.84 m, GPS diff 0.173 m "
-                    "(mag) vs 2.67 m (no-mag)", "config": _describe(CAR, ccfg),
-                    "results": cres}
+    return {"description": f"car drive {CAR.duration:.0f} s (10-18 m/s, 90 deg corners, a "
+                           "stop), 18 states; paper: path diff 2.84 m, GPS diff 0.173 m (mag) "
+                           "vs 2.67 m (no-mag)", "config": _describe(CAR, ccfg),
+            "results": cres}
+
+
+# The headline and the cases (the JSON's `cases`, in its order), each a task of its own:
+# parallel.map_tasks runs them side by side in worker processes, LONGEST_FIRST. All but the
+# outage and the car run on the headline's data.
+CASES = {"headline": _headline, "nine-state": _nine_state, "fifteen-state": _fifteen_state,
+         "paper-attitude": _paper_attitude, "outage": _outage, "car": _car}
+LONGEST_FIRST = ("headline", "outage", "car", "paper-attitude", "nine-state", "fifteen-state")
+
+
+@register("ins", "seed 001 sec. 4: GPS-aided strapdown INS, with vs without magnetometer",
+          default_runs=8)
+def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
+    data = simulate(HEADLINE, runs, seed)
+    parts = dict(zip(LONGEST_FIRST, map_tasks(
+        lambda name: CASES[name](data, runs, seed, batch), LONGEST_FIRST)))
+    results = parts.pop("headline")
+    example = parts["outage"].pop("example")
+    cases = {name: parts[name] for name in CASES if name in parts}
     summary = {
         "experiment": "ins",
         "description": DESCRIPTION,

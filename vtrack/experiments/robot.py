@@ -31,6 +31,7 @@ from vtrack.estimation.kalman import Innovation
 from vtrack.estimation.linalg import wrap_angle
 from vtrack.estimation.models import MeasurementModel, MotionModel, pose_measurement
 from vtrack.estimation.montecarlo import monte_carlo, nees_summary, run_generators, run_sequence
+from vtrack.estimation.parallel import map_tasks
 from vtrack.estimation.sigma_filters import SquareRootUKF
 from vtrack.experiments import ExampleRun, ExperimentResult, register
 from vtrack.filter_kinds import make_filter
@@ -361,9 +362,10 @@ def run_case(cfg: RobotConfig, runs: int, seed: int, kinds: tuple[str, ...] = KI
         example = ExampleRun(times=np.arange(cfg.steps + 1, dtype=float), truth=truths[0],
                              estimates={}, covariances={}, nees={},
                              measurements=np.vstack([np.full((1, 3), np.nan), zs[0]]))
-    for kind in kinds:
-        run = monte_carlo(kind, lambda r, kind=kind: build_filter(kind, cfg, xhat0s[r]),
-                          np.array(zs), 1.0, record=COUNTERS, batch=batch)
+    filtered = map_tasks(lambda kind: monte_carlo(
+        kind, lambda r: build_filter(kind, cfg, xhat0s[r]), np.array(zs), 1.0,
+        record=COUNTERS, batch=batch), kinds)
+    for kind, run in zip(kinds, filtered):
         acc = per[kind]
         for r in range(runs):
             if run.failed[r]:
@@ -529,8 +531,16 @@ DESCRIPTION = (
 @register("robot", "seed 002: UKF vs SR-UKF vs the paper's cube-root UKF on a robot",
           default_runs=50)
 def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
-    results, example = run_case(PAPER, runs, seed, KINDS + COMPARED, keep_example=True,
-                                batch=batch)
+    def case(name: str | None) -> tuple[dict[str, Any], ExampleRun | None]:
+        if name is None:                                    # the paper's configuration
+            return run_case(PAPER, runs, seed, KINDS + COMPARED, keep_example=True,
+                            batch=batch)
+        cfg, _, full = CASES[name]
+        return run_case(cfg, case_runs(runs, full), seed,
+                        KINDS + COMPARED if name == "unicycle" else KINDS, batch=batch)
+
+    # the paper's configuration and every case side by side (parallel.map_tasks)
+    (results, example), *others = map_tasks(case, [None, *CASES])
     for kind, values in PAPER_TABLE1.items():
         results[kind]["paper"] = values
     excluded = []
@@ -545,13 +555,9 @@ def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
                     series.pop(kind, None)
                 for key in (f"rmse/{kind}", f"nees/{kind}"):
                     example.extra_series.pop(key, None)
-    cases = {}
-    for name, (cfg, text, full) in CASES.items():
-        n = case_runs(runs, full)
-        res, _ = run_case(cfg, n, seed, KINDS + COMPARED if name == "unicycle" else KINDS,
-                          batch=batch)
-        cases[name] = {"description": text, "runs": n, "config": cfg.describe(),
-                       "results": res}
+    cases = {name: {"description": text, "runs": case_runs(runs, full),
+                    "config": cfg.describe(), "results": res}
+             for (name, (cfg, text, full)), (res, _) in zip(CASES.items(), others)}
     summary = {
         "experiment": "robot",
         "description": DESCRIPTION,

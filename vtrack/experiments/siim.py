@@ -33,6 +33,7 @@ from vtrack.estimation.montecarlo import (
     run_rmse,
     squared_error,
 )
+from vtrack.estimation.parallel import map_tasks
 from vtrack.experiments import ExampleRun, ExperimentResult, register
 from vtrack.filter_kinds import make_filter
 
@@ -162,13 +163,14 @@ def run_filters(gammas: tuple[float, ...], motion: MotionModel, meas: Measuremen
                 batch: bool = True) -> dict[Any, MonteCarloRun]:
     """The EKF ('ekf') and siim-ekf per gamma over the runs' scalar measurements z (R, K)
     from the priors x0s (R, n) (the harness; batch as in monte_carlo), recording the SIIM
-    scale of R (r_scale)."""
+    scale of R (r_scale); the filters side by side in worker processes (parallel.map_tasks)."""
     record = {"r_scale": lambda f: getattr(f, "r_scale", 1.0)}
-    return {g: monte_carlo("ekf" if g == "ekf" else "siim-ekf",
-                           lambda r, g=g: _filter("ekf" if g == "ekf" else "siim-ekf", motion,
-                                                  meas, x0s[r], P0, None if g == "ekf" else g),
-                           z[..., None], dt, record=record, batch=batch)
-            for g in ("ekf",) + tuple(gammas)}
+    filters = ("ekf",) + tuple(gammas)
+    return dict(zip(filters, map_tasks(lambda g: monte_carlo(
+        "ekf" if g == "ekf" else "siim-ekf",
+        lambda r: _filter("ekf" if g == "ekf" else "siim-ekf", motion, meas, x0s[r], P0,
+                          None if g == "ekf" else g),
+        z[..., None], dt, record=record, batch=batch), filters)))
 
 
 def _entry(run: MonteCarloRun, truth: np.ndarray, pos: slice, dof: int) -> dict[str, Any]:
