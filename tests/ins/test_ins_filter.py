@@ -6,14 +6,34 @@ import numpy as np
 import pytest
 
 from vtrack.estimation.bounds import chi2_band, nees
-from vtrack.ins.strapdown import GRAVITY_N, NavState, attitude_error
-from vtrack.ins.error_state_filter import InsFilterConfig, _attitude_rows, run_ins_filter
+from vtrack.ins.strapdown import (GRAVITY_N, NavState, attitude_error, error_transition,
+                                  process_noise)
+from vtrack.estimation.kalman import kf_predict
+from vtrack.ins.error_state_filter import (InsFilterConfig, _attitude_rows, predict_covariance,
+                                           run_ins_filter)
 from vtrack.ins.so3 import euler_to_dcm, exp_so3
 from vtrack.experiments import ins
 from vtrack.sim.imu import ImuSpec
 
 RUNS = 12
 OUTAGE = (70.0, 100.0)
+
+
+@pytest.mark.parametrize("n", [9, 15, 18])
+def test_the_block_prediction_is_the_dense_one(n):
+    """predict_covariance (Phi's bias rows are the identity) gives kf_predict's F P F' + Q to
+    rounding, exactly symmetric, for a stack of attitudes and specific forces."""
+    rng = np.random.default_rng(n)
+    R = exp_so3(rng.normal(size=(6, 3)))
+    F = error_transition(R, rng.normal(0.0, 5.0, (6, 3)), np.array([0.0, 7e-5, 3e-6]), n,
+                         0.025)
+    A = rng.normal(size=(6, n, n))
+    P = A @ np.swapaxes(A, -1, -2) + np.eye(n)
+    Q = process_noise(np.eye(3), n, 0.025, 4e-4, 3e-8, 2.5e-7, 1e-14, 4e-6)
+    got = predict_covariance(P, F, Q)
+    want = kf_predict(np.zeros((6, n)), P, F, Q)[1]
+    assert np.array_equal(got, np.swapaxes(got, -1, -2))
+    np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-14 * np.abs(want).max())
 
 
 def test_attitude_rows_jacobian_matches_the_measurement():
