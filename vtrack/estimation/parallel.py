@@ -1,11 +1,11 @@
-"""Independent tasks side by side on the machine's cores: the Monte Carlo runs of a filter as
-one stack per core (montecarlo.monte_carlo), the cases of an experiment (experiments/ins.py).
+"""Independent tasks side by side on the machine's cores: the cases of a seed experiment, and
+the filters of a case (vtrack/experiments), each a stack of Monte Carlo runs.
 
 The workers are forked processes: they inherit the task as it stands, closures and all, and
 only the results travel back (pickled). A task's numbers do not depend on where it runs (a
-run's filter does not depend on the runs stacked beside it), so the results are those of one
-process. `VTRACK_WORKERS=1` runs everything in this process; so does a platform without
-fork, and a worker (no workers of workers).
+filter does not depend on what runs beside it), so the results are those of one process.
+`VTRACK_WORKERS=1` runs everything in this process; so does a platform without fork, and a
+worker (no workers of workers).
 """
 
 from __future__ import annotations
