@@ -7,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -80,3 +81,42 @@ def test_an_experiment_gives_the_same_json_on_one_worker_as_on_two(monkeypatch):
     alone = json.dumps(run(2, 5).summary)
     monkeypatch.setenv(parallel.WORKERS_VARIABLE, "2")
     assert json.dumps(run(2, 5).summary) == alone
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl(PR_SET_PDEATHSIG)")
+def test_the_workers_die_with_a_killed_parent(tmp_path):
+    """A parent killed outright (SIGKILL: no handler runs) takes its workers with it, at
+    once, instead of leaving them to compute for nobody."""
+    pids = tmp_path / "pids"
+    script = (
+        "import os, sys, time\n"
+        "from vtrack.estimation.parallel import map_tasks\n"
+        "def task(i):\n"
+        f"    open({str(pids)!r}, 'a').write(f'{{os.getpid()}}\\n')\n"
+        "    time.sleep(60)\n"
+        "map_tasks(task, [0, 1])\n")
+    env = dict(os.environ, VTRACK_WORKERS="2")
+    parent = subprocess.Popen([sys.executable, "-c", script], env=env,
+                              stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and (not pids.exists()
+                                           or len(pids.read_text().split()) < 2):
+        time.sleep(0.05)
+    workers_ = [int(p) for p in pids.read_text().split()]
+    assert len(workers_) == 2
+    parent.kill()
+    parent.wait(timeout=10)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(p) for p in workers_):
+        time.sleep(0.05)
+    assert not any(_alive(p) for p in workers_)
+    assert parent.stderr.read() == b""
+
+
+def _alive(pid: int) -> bool:
+    """The process exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

@@ -10,6 +10,7 @@ worker (no workers of workers).
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
 import signal
@@ -22,6 +23,8 @@ R = TypeVar("R")
 WORKERS_VARIABLE = "VTRACK_WORKERS"
 
 _TASKS: tuple[Callable, Sequence] | None = None     # what the forked workers run
+_PARENT = 0                                         # the process whose workers they are
+PR_SET_PDEATHSIG = 1                                # linux/prctl.h
 
 
 def workers() -> int:
@@ -46,8 +49,8 @@ def map_tasks(fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
     n = min(workers(), len(items))
     if n <= 1:
         return [fn(item) for item in items]
-    global _TASKS
-    _TASKS = (fn, items)
+    global _TASKS, _PARENT
+    _TASKS, _PARENT = (fn, items), os.getpid()
     try:
         with multiprocessing.get_context("fork").Pool(n, initializer=_worker_signals) as pool:
             return pool.map(_run_task, range(len(items)), chunksize=1)
@@ -57,9 +60,16 @@ def map_tasks(fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
 
 def _worker_signals() -> None:
     """A worker leaves Ctrl-C to its parent (which ends the pool) and dies at once on the
-    SIGTERM that ends the pool, whatever handler the parent had (the CLI's)."""
+    SIGTERM that ends the pool, whatever handler the parent had (the CLI's), and (Linux) with
+    its parent: a killed experiment leaves no worker computing for nobody."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):       # no prctl: the worker ends at its next result
+        pass
+    if os.getppid() != _PARENT:             # the parent died before the prctl
+        os._exit(1)
 
 
 def _run_task(i: int) -> object:
