@@ -12,6 +12,9 @@ HELP = "reproduce a seed paper's experiment (Monte Carlo where the paper used it
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.epilog = ("The cases and filters run side by side, one worker process per CPU;\n"
+                "the environment variable VTRACK_WORKERS=N sets how many (1: one process).\n"
+                "The numbers do not depend on it.")
     p.add_argument("name", nargs="?", help="experiment name (see --list)")
     p.add_argument("--list", action="store_true", help="print the experiment names and exit")
     p.add_argument("--runs", type=int, help="Monte Carlo runs (default: the paper's)")
