@@ -74,11 +74,11 @@ def ankf(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
     seeds = scn.run_seeds(seed, runs)
     bodies = {}
     example = None
-    every = scenarios()
+    cases = scenarios()
     # the scenarios side by side (parallel.map_tasks)
-    simulated = map_tasks(lambda name: scn.simulate(every[name][0], seeds, every[name][1],
-                                                    batch), list(every))
-    for (name, (scenario, filters, description)), case in zip(every.items(), simulated):
+    simulated = map_tasks(lambda case: scn.simulate(case[0], seeds, case[1], batch),
+                          list(cases.values()))
+    for (name, (scenario, filters, description)), case in zip(cases.items(), simulated):
         bodies[name] = {
             "description": description,
             "parameters": scenario.parameters(),
