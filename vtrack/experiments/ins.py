@@ -425,39 +425,39 @@ def _describe(scn: Scenario, cfg: InsFilterConfig) -> dict[str, Any]:
     return d
 
 
-def _headline(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
-    head = run_variant(data, HEADLINE, filter_config(HEADLINE, 18), stacked=batch)
-    results = {label: metrics(s, data) for label, s in head.items()}
-    _compare(results, head)
-    return results
+def _eighteen_state(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
+    """The headline and the paper-attitude case: the same 18-state filter on the same data,
+    stepped as one batch (one pass over the epochs for both)."""
+    series = run_variant(data, HEADLINE, filter_config(HEADLINE, 18),
+                         ("mag", "no-mag", "mag-paper"), stacked=batch)
+    paper = {"mag": metrics(series.pop("mag-paper"), data)}
+    results = {label: metrics(s, data) for label, s in series.items()}
+    _compare(results, series)
+    return {"headline": results, "paper-attitude": {
+        "description": "18 states, attitude rows exactly as eqs. 36-37 at every GPS epoch "
+                       "(accelerometer roll/pitch even in turns, heading compensated with "
+                       "them); same data as the headline", "results": paper}}
 
 
 def _nine_state(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
     nine = run_variant(data, HEADLINE, filter_config(HEADLINE, 9), stacked=batch)
     res9 = {label: metrics(s, data) for label, s in nine.items()}
     _compare(res9, nine)
-    return {"description": "the paper's 9-state filter [dr, dv, eps] (eqs. 28-33): sensor "
-                           "biases covered by Q only (q = sigma_noise^2 + sigma_bias^2 * 10 s), "
-                           "heading noise 1 deg", "results": res9}
+    return {"nine-state": {
+        "description": "the paper's 9-state filter [dr, dv, eps] (eqs. 28-33): sensor biases "
+                       "covered by Q only (q = sigma_noise^2 + sigma_bias^2 * 10 s), heading "
+                       "noise 1 deg", "results": res9}}
 
 
 def _fifteen_state(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
     fifteen = run_variant(data, HEADLINE, filter_config(HEADLINE, 15), ("mag",),
                           stacked=batch)
-    return {"description": "15 states (+ accel and gyro bias; the magnetometer bias is not "
-                           "modelled, heading noise 1 deg white). Without the magnetometer it "
-                           "is identical to the headline's no-mag (the mag-bias states are then "
-                           "decoupled), so only 'mag' is run",
-            "results": {"mag": metrics(fifteen["mag"], data)}}
-
-
-def _paper_attitude(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
-    paper = run_variant(data, HEADLINE, filter_config(HEADLINE, 18), ("mag-paper",),
-                        stacked=batch)
-    return {"description": "18 states, attitude rows exactly as eqs. 36-37 at every GPS epoch "
-                           "(accelerometer roll/pitch even in turns, heading compensated with "
-                           "them); same data as the headline",
-            "results": {"mag": metrics(paper["mag-paper"], data)}}
+    return {"fifteen-state": {
+        "description": "15 states (+ accel and gyro bias; the magnetometer bias is not "
+                       "modelled, heading noise 1 deg white). Without the magnetometer it is "
+                       "identical to the headline's no-mag (the mag-bias states are then "
+                       "decoupled), so only 'mag' is run",
+        "results": {"mag": metrics(fifteen["mag"], data)}}}
 
 
 def _outage(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
@@ -471,10 +471,11 @@ def _outage(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
         ores[label] = metrics(s, ob)
         ores[label].update(outage_metrics(s, ob, OUTAGE.outages))
     _compare(ores, oser)
-    return {"description": f"UAV {OUTAGE.duration:.0f} s, GPS outages "
-                           f"{list(OUTAGE.outages)} s (attitude rows continue), 18 states",
-            "config": _describe(OUTAGE, ocfg), "results": ores,
-            "example": example_run(ob, oser, every)}
+    return {"outage": {"description": f"UAV {OUTAGE.duration:.0f} s, GPS outages "
+                                      f"{list(OUTAGE.outages)} s (attitude rows continue), "
+                                      "18 states",
+                       "config": _describe(OUTAGE, ocfg), "results": ores,
+                       "example": example_run(ob, oser, every)}}
 
 
 def _car(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
@@ -484,29 +485,29 @@ def _car(data: Batch, runs: int, seed: int, batch: bool) -> dict[str, Any]:
     cser = run_variant(cb, CAR, ccfg, stacked=batch)
     cres = {label: metrics(s, cb) for label, s in cser.items()}
     _compare(cres, cser)
-    return {"description": f"car drive {CAR.duration:.0f} s (10-18 m/s, 90 deg corners, a "
-                           "stop), 18 states; paper: path diff 2.84 m, GPS diff 0.173 m (mag) "
-                           "vs 2.67 m (no-mag)", "config": _describe(CAR, ccfg),
-            "results": cres}
+    return {"car": {"description": f"car drive {CAR.duration:.0f} s (10-18 m/s, 90 deg corners, "
+                                   "a stop), 18 states; paper: path diff 2.84 m, GPS diff "
+                                   "0.173 m (mag) vs 2.67 m (no-mag)",
+                    "config": _describe(CAR, ccfg), "results": cres}}
 
 
-# The headline and the cases (the JSON's `cases`, in its order), each a task of its own:
-# parallel.map_tasks runs them side by side in worker processes, LONGEST_FIRST. All but the
-# outage and the car run on the headline's data.
-CASES = {"headline": _headline, "nine-state": _nine_state, "fifteen-state": _fifteen_state,
-         "paper-attitude": _paper_attitude, "outage": _outage, "car": _car}
-LONGEST_FIRST = ("headline", "nine-state", "fifteen-state", "paper-attitude", "outage", "car")
+# The tasks, each giving parts of the JSON by name (the headline, the cases), longest first:
+# parallel.map_tasks runs them side by side in worker processes. All but the outage and the
+# car run on the headline's data.
+LONGEST_FIRST = (_eighteen_state, _nine_state, _outage, _fifteen_state, _car)
+CASES = ("nine-state", "fifteen-state", "paper-attitude", "outage", "car")   # the JSON's order
 
 
 @register("ins", "seed 001 sec. 4: GPS-aided strapdown INS, with vs without magnetometer",
           default_runs=8)
 def run(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
     data = simulate(HEADLINE, runs, seed)
-    parts = dict(zip(LONGEST_FIRST, map_tasks(
-        lambda name: CASES[name](data, runs, seed, batch), LONGEST_FIRST)))
+    parts: dict[str, Any] = {}
+    for got in map_tasks(lambda task: task(data, runs, seed, batch), LONGEST_FIRST):
+        parts.update(got)
     results = parts.pop("headline")
     example = parts["outage"].pop("example")
-    cases = {name: parts[name] for name in CASES if name in parts}
+    cases = {name: parts[name] for name in CASES}
     summary = {
         "experiment": "ins",
         "description": DESCRIPTION,
