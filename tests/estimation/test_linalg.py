@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from vtrack.estimation.kalman import kf_update
-from vtrack.estimation.linalg import DowndateError, cholupdate, tria, wrap_angle
+from vtrack.estimation.linalg import (DowndateError, cholesky_each, cholupdate, tria,
+                                     wrap_angle)
 from vtrack.estimation.models import WienerVelocity
 
 PI = np.pi
@@ -142,3 +143,24 @@ def test_joseph_update_keeps_P_symmetric_psd_with_suboptimal_gain():
         P = F @ P_post @ F.T + Q
         P_short = F @ P_short @ F.T + Q
     assert short_indefinite > 1000
+
+
+# ------------------------------------------------------------------------ cholesky_each
+
+
+def test_cholesky_each_flags_the_matrices_that_are_not_positive_definite():
+    """Per matrix: np.linalg.cholesky's factor where it is positive definite (the same
+    LAPACK call, so bit for bit on one machine), NaN and False where it is not; numpy's own
+    call raises for the whole stack."""
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(7, 4, 4))
+    P = A @ np.swapaxes(A, -1, -2) + 0.1 * np.eye(4)
+    P[2] -= 30.0 * np.eye(4)                       # negative definite
+    P[5, 3, 3] = -1e-3 + P[5, 3, :3] @ np.linalg.solve(P[5, :3, :3], P[5, :3, 3])  # indefinite
+    L, ok = cholesky_each(P)
+    assert ok.tolist() == [True, True, False, True, True, False, True]
+    for i in np.flatnonzero(ok):
+        np.testing.assert_allclose(L[i], np.linalg.cholesky(P[i]), rtol=1e-15, atol=0)
+    assert np.isnan(L[~ok]).all()
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.cholesky(P)

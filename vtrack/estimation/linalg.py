@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.linalg import _umath_linalg
 
 
 class EstimationError(ValueError):
@@ -45,6 +46,16 @@ def cholesky(P: np.ndarray, what: str = "covariance") -> np.ndarray:
         raise NotPositiveDefiniteError(
             f"{what} is not positive definite (smallest eigenvalue {eig.min():.3g})"
         ) from None
+
+
+def cholesky_each(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower Cholesky factors of a stack of finite symmetric matrices (..., n, n) and, per
+    matrix, whether it is positive definite (where not, its factor is NaN). The same LAPACK
+    factorisation as np.linalg.cholesky, which wraps this gufunc with one error for the
+    whole stack."""
+    with np.errstate(invalid="ignore"):
+        L = _umath_linalg.cholesky_lo(np.asarray(P, dtype=float), signature="d->d")
+    return L, ~np.isnan(L[..., 0, 0])
 
 
 def require_finite(a: np.ndarray, what: str) -> np.ndarray:

@@ -23,8 +23,10 @@ from vtrack.estimation.iterated import (
 )
 from vtrack.estimation.kalman import Innovation
 from vtrack.estimation.linalg import (
+    EstimationError,
     NotPositiveDefiniteError,
     cholesky,
+    cholesky_each,
     cholupdate_each,
     spd_root,
     symmetrize,
@@ -253,30 +255,33 @@ class SquareRootUKF(GaussianFilter):
         M = full()
         if np.ndim(ok) == 0:
             self.fallbacks += 1
-            return self._full_factor(M, what)
+            return self._full_factor(M[None], what, np.zeros(1, dtype=int))[0]
         bad = np.flatnonzero(~ok)
         self.fallbacks[bad] += 1
         S = S.copy()
-        for r in bad:
-            S[r] = self._full_factor(M[r], what, r)
+        S[bad] = self._full_factor(M[bad], what, bad)
         return S
 
-    def _full_factor(self, M: np.ndarray, what: str, run: int | None = None) -> np.ndarray:
-        """Cholesky factor of the full-covariance fallback (of one run), or its repair (see
-        class doc)."""
+    def _full_factor(self, M: np.ndarray, what: str, runs: np.ndarray) -> np.ndarray:
+        """Cholesky factors of the full-covariance fallbacks M (k, n, n) of the `runs` (k,),
+        each repaired (see class doc) where it is not positive definite."""
         M = symmetrize(M)
-        try:
-            return cholesky(M, what)
-        except NotPositiveDefiniteError:
-            if not self.repair or not np.all(np.isfinite(M)):
-                raise
-            if run is None:
-                self.repairs += 1
-            else:
-                self.repairs[run] += 1
-            d, U = np.linalg.eigh(M)
-            floor = 1e-10 * max(float(d.max()), np.finfo(float).tiny)
-            return tria(U * np.sqrt(np.maximum(d, floor)))
+        if not np.all(np.isfinite(M)):
+            raise EstimationError(f"{what} has non-finite entries")
+        L, pd = cholesky_each(M)
+        if np.all(pd):
+            return L
+        bad = np.flatnonzero(~pd)
+        if not self.repair:
+            cholesky(M[bad[0]], what)         # raises NotPositiveDefiniteError, as it says
+        if np.ndim(self.repairs) == 0:
+            self.repairs += 1
+        else:
+            self.repairs[runs[bad]] += 1
+        d, U = np.linalg.eigh(M[bad])
+        floor = 1e-10 * np.maximum(d.max(axis=-1), np.finfo(float).tiny)
+        L[bad] = tria(U * np.sqrt(np.maximum(d, floor[:, None]))[:, None, :])
+        return L
 
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
         Xp = self.motion.f(self._points(self.x), dt, _inputs_of_points(u))
