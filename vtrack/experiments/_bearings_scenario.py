@@ -348,11 +348,17 @@ class CaseRun:
     options: dict[str, dict[str, object]]
 
 
-def simulate(scenario: Scenario, seeds: list[int],
-             filters: dict[str, dict[str, object]], batch: bool = True) -> CaseRun:
-    """Truth, measurements, the PCRLB and every filter of `filters` ({kind: options}) on the
-    same runs (paired), the filters side by side in worker processes (parallel.map_tasks);
-    batch as in run_filter."""
+@dataclass
+class _Data:
+    """One scenario's runs before the filters: truth, measurements, priors and the PCRLB."""
+
+    truth: np.ndarray
+    Z: np.ndarray
+    x0s: np.ndarray
+    bound_var: np.ndarray
+
+
+def _data(scenario: Scenario, seeds: list[int]) -> _Data:
     if scenario.truth == "turn":
         truth = turning_truth(seeds)
         x0s = np.broadcast_to(M0, (len(seeds), 4)).copy()
@@ -365,12 +371,42 @@ def simulate(scenario: Scenario, seeds: list[int],
     Z = measure(truth, scenario.sensors, scenario.sigma_true, seeds)
     bound_var = pcrlb_variance(truth, scenario.sensors, scenario.sigma_true, scenario.q_true,
                                scenario.dt, scenario.prior_cov)
-    motion = WienerVelocity(scenario.q_filter)
-    meas = Bearings(scenario.sensors, scenario.sigma_filter)
-    runs = dict(zip(filters, map_tasks(
-        lambda kind: run_filter(kind, motion, meas, Z, x0s, scenario.prior_cov, batch,
-                                dt=scenario.dt, **filters[kind]), list(filters))))
-    return CaseRun(scenario, seeds, truth, Z, x0s, bound_var, runs, dict(filters))
+    return _Data(truth, Z, x0s, bound_var)
+
+
+# the kinds by their cost per update, the slowest first (the iterated updates relinearise
+# several times a step); tasks are handed out in this order, so the workers finish together
+SLOWEST_FIRST = ("iplf", "iekf", "ckf", "ukf", "ankf2", "ankf1", "ekf")
+
+
+def simulate(scenario: Scenario, seeds: list[int],
+             filters: dict[str, dict[str, object]], batch: bool = True) -> CaseRun:
+    """Truth, measurements, the PCRLB and every filter of `filters` ({kind: options}) on the
+    same runs (paired); batch as in run_filter. simulate_all of one scenario."""
+    return simulate_all([(scenario, filters)], seeds, batch)[0]
+
+
+def simulate_all(cases: list[tuple[Scenario, dict[str, dict[str, object]]]], seeds: list[int],
+                 batch: bool = True) -> list[CaseRun]:
+    """simulate() of each (scenario, filters) pair. The scenarios' data, then every filter of
+    every scenario, run side by side in worker processes (parallel.map_tasks), the filters
+    SLOWEST_FIRST: one task a filter, not a scenario, so that no worker is left with two
+    scenarios' iterated filters while the other idles."""
+    data = map_tasks(lambda case: _data(case[0], seeds), cases)
+    rank = {kind: i for i, kind in enumerate(SLOWEST_FIRST)}
+    tasks = sorted(((i, kind) for i, (_, filters) in enumerate(cases) for kind in filters),
+                   key=lambda task: rank.get(task[1], len(rank)))
+
+    def run(task: tuple[int, str]) -> MonteCarloRun:
+        i, kind = task
+        sc, d = cases[i][0], data[i]
+        return run_filter(kind, WienerVelocity(sc.q_filter), Bearings(sc.sensors, sc.sigma_filter),
+                          d.Z, d.x0s, sc.prior_cov, batch, dt=sc.dt, **cases[i][1][kind])
+
+    done = dict(zip(tasks, map_tasks(run, tasks)))
+    return [CaseRun(sc, seeds, d.truth, d.Z, d.x0s, d.bound_var,
+                    {kind: done[(i, kind)] for kind in filters}, dict(filters))
+            for i, ((sc, filters), d) in enumerate(zip(cases, data))]
 
 
 def case_results(case: CaseRun, paper: dict[str, float] | None = None

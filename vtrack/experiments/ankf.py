@@ -21,7 +21,6 @@ from __future__ import annotations
 import numpy as np
 
 from vtrack.estimation.bounds import chi2_band
-from vtrack.estimation.parallel import map_tasks
 from vtrack.experiments import ExperimentResult, register
 from vtrack.experiments import _bearings_scenario as scn
 
@@ -75,9 +74,8 @@ def ankf(runs: int, seed: int, batch: bool = True) -> ExperimentResult:
     bodies = {}
     example = None
     cases = scenarios()
-    # the scenarios side by side (parallel.map_tasks)
-    simulated = map_tasks(lambda case: scn.simulate(case[0], seeds, case[1], batch),
-                          list(cases.values()))
+    simulated = scn.simulate_all([(sc, filters) for sc, filters, _ in cases.values()], seeds,
+                                 batch)
     for (name, (scenario, filters, description)), case in zip(cases.items(), simulated):
         bodies[name] = {
             "description": description,

@@ -18,7 +18,6 @@ from __future__ import annotations
 import numpy as np
 
 from vtrack.estimation.bounds import chi2_band
-from vtrack.estimation.parallel import map_tasks
 from vtrack.experiments import ExperimentResult, register
 from vtrack.experiments import _bearings_scenario as scn
 
@@ -75,9 +74,9 @@ def _case_body(case: scn.CaseRun, description: str, paper: dict[str, float] | No
 def _experiment(name: str, scenario: scn.Scenario, headline: str, runs: int, seed: int,
                 cases: dict[str, tuple[scn.Scenario, str]], batch: bool) -> ExperimentResult:
     seeds = scn.run_seeds(seed, runs)
-    # the headline scenario and every case side by side (parallel.map_tasks)
-    main, *others = map_tasks(lambda sc: scn.simulate(sc, seeds, FILTERS, batch),
-                              [scenario, *(sc for sc, _ in cases.values())])
+    main, *others = scn.simulate_all([(sc, FILTERS) for sc in
+                                      (scenario, *(sc for sc, _ in cases.values()))],
+                                     seeds, batch)
     summary: dict[str, object] = {
         "experiment": name,
         "seed_paper": "000 (Khadour, Al Saba & Saleh 2019)",
