@@ -6,8 +6,38 @@ import numpy as np
 from scipy import stats
 
 
+ELEMENTWISE_FROM = 100     # matrices in a stack from which nees factors them elementwise
+
+
 def nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Normalised estimation error squared e' P^-1 e over stacks (..., n), (..., n, n)."""
+    """Normalised estimation error squared e' P^-1 e over stacks (..., n), (..., n, n).
+
+    A stack of ELEMENTWISE_FROM matrices or more: |L^-1 e|^2 with P = L L' (Cholesky and
+    forward substitution), each step an elementwise operation over the whole stack; LAPACK
+    by matrix (np.linalg.solve) costs a few microseconds a matrix in its per-matrix calls
+    alone (measured for 51,200 3x3 matrices: 2.3 ms against 20 ms; 12,800 18x18: 32 against
+    43 ms). Smaller stacks, and the matrices the factorisation finds not positive definite,
+    are solved with LAPACK."""
+    err, P = np.asarray(err, dtype=float), np.asarray(P, dtype=float)
+    if err[..., 0].size < ELEMENTWISE_FROM:
+        return _nees_solved(err, P)
+    n = err.shape[-1]
+    L: dict[tuple[int, int], np.ndarray] = {}
+    y: list[np.ndarray] = []
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for i in range(n):
+            for j in range(i + 1):
+                s = P[..., i, j] - sum(L[i, k] * L[j, k] for k in range(j))
+                L[i, j] = np.sqrt(s) if i == j else s / L[j, j]
+            y.append((err[..., i] - sum(L[i, k] * y[k] for k in range(i))) / L[i, i])
+        out = np.asarray(sum(v * v for v in y))
+    bad = ~np.isfinite(out)
+    if bad.any():
+        out[bad] = _nees_solved(err[bad], P[bad])
+    return out
+
+
+def _nees_solved(err: np.ndarray, P: np.ndarray) -> np.ndarray:
     sol = np.linalg.solve(P, err[..., None])[..., 0]
     return np.einsum("...i,...i->...", err, sol)
 
