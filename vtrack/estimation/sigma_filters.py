@@ -255,33 +255,33 @@ class SquareRootUKF(GaussianFilter):
         M = full()
         if np.ndim(ok) == 0:
             self.fallbacks += 1
-            return self._full_factor(M[None], what, np.zeros(1, dtype=int))[0]
+            L, repaired = self._full_factor(M[None], what)
+            self.repairs += int(repaired[0])
+            return L[0]
         bad = np.flatnonzero(~ok)
         self.fallbacks[bad] += 1
         S = S.copy()
-        S[bad] = self._full_factor(M[bad], what, bad)
+        factors, repaired = self._full_factor(M[bad], what)
+        S[bad] = factors
+        self.repairs[bad[repaired]] += 1
         return S
 
-    def _full_factor(self, M: np.ndarray, what: str, runs: np.ndarray) -> np.ndarray:
-        """Cholesky factors of the full-covariance fallbacks M (k, n, n) of the `runs` (k,),
-        each repaired (see class doc) where it is not positive definite."""
+    def _full_factor(self, M: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+        """Cholesky factors of the full-covariance fallbacks M (k, n, n), each repaired (see
+        class doc) where it is not positive definite; and which were repaired (k,)."""
         M = symmetrize(M)
         if not np.all(np.isfinite(M)):
             raise EstimationError(f"{what} has non-finite entries")
         L, pd = cholesky_each(M)
         if np.all(pd):
-            return L
+            return L, ~pd
         bad = np.flatnonzero(~pd)
         if not self.repair:
             cholesky(M[bad[0]], what)         # raises NotPositiveDefiniteError, as it says
-        if np.ndim(self.repairs) == 0:
-            self.repairs += 1
-        else:
-            self.repairs[runs[bad]] += 1
         d, U = np.linalg.eigh(M[bad])
         floor = 1e-10 * np.maximum(d.max(axis=-1), np.finfo(float).tiny)
         L[bad] = tria(U * np.sqrt(np.maximum(d, floor[:, None]))[:, None, :])
-        return L
+        return L, ~pd
 
     def predict(self, dt: float, u: np.ndarray | None = None) -> None:
         Xp = self.motion.f(self._points(self.x), dt, _inputs_of_points(u))
