@@ -203,6 +203,21 @@ def test_eval_realboxes(tmp_path):
         assert 0.5 < r["recall"] <= 1 and 0.8 < r["precision"] <= 1, (name, r)
 
 
+def test_eval_far(tmp_path):
+    """The far-vehicle evaluation on one short 1280x720 mast clip with far vehicles: both
+    configurations scored, the scores fractions (the band needs more tracked boxes than 60
+    frames give to start, so the two may agree)."""
+    js = tmp_path / "far.json"
+    out = _run("scripts/eval_far.py", "--seeds", "102", "--frames", "60", "--work",
+               tmp_path / "work", "--json", js)
+    assert "mast-102" in out and "mean" in out
+    (clip,) = json.loads(js.read_text()).values()
+    assert set(clip) == {"far band off", "far band on"}
+    for r in clip.values():
+        assert r["far_boxes"] > 50
+        assert all(0 <= r[k] <= 1 for k in ("recall", "far_recall", "precision", "idf1"))
+
+
 def test_stabiliser_truth(tmp_path):
     """One 40-frame mast clip: the stabiliser's error against the true sway, in pixels, with
     both stabiliser settings."""

@@ -464,9 +464,33 @@ def test_shift_tolerance_blends_follow_their_definition():
             pairs += [(win[i, j], win[i + 1, j]) for i in range(4) for j in range(5)]
             want.append(any(np.all((np.minimum(a, b) - 8 <= c) & (c <= np.maximum(a, b) + 8))
                             for a, b in pairs))
-        got = shift._blends(colours, bg, ys, xs)
+        got = shift._blends(colours, bg, ys, xs, 2)
         assert got.tolist() == want
         assert 0 < sum(want) < len(want) or trial >= 3
+
+
+def test_shift_tolerance_of_a_large_radius_tests_the_small_window_first_with_one_result():
+    """Radius 4 (the far band's, at twice the resolution) explains the pixels the radius-2
+    window explains and then tests the rest with the full window: the same mask as the full
+    window's test of every candidate."""
+    import cv2
+
+    from vtrack.vision.jitter import ShiftTolerance
+
+    rng = np.random.default_rng(5)
+    bg = cv2.GaussianBlur(rng.integers(0, 256, (60, 80, 3), dtype=np.uint8), (5, 5), 0)
+    frame = np.clip(np.roll(bg, (3, -2), axis=(0, 1)).astype(int)
+                    + rng.integers(-6, 7, bg.shape), 0, 255).astype(np.uint8)
+    fg = np.where(rng.random((60, 80)) < 0.5, 255, 0).astype(np.uint8)
+    shift = ShiftTolerance(8.0, 4)
+    low, high = shift.bounds(bg)
+    ys, xs = np.nonzero(cv2.bitwise_and(cv2.inRange(frame, low, high), fg))
+    want = fg.copy()
+    explained = shift._blends(frame[ys, xs], bg, ys, xs, 4)
+    want[ys[explained], xs[explained]] = 0
+    near = shift._blends(frame[ys, xs], bg, ys, xs, 2)
+    assert near.sum() < explained.sum() and not (near & ~explained).any()
+    assert np.array_equal(shift(fg, frame, bg), want)
 
 
 def test_long_pieces_of_a_mask():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from vtrack.vision.sizes import MIN_BOXES, REFIT_EVERY, SizeFloor, fit_size
 
@@ -36,3 +37,19 @@ def test_floor_is_min_pixels_until_learnt_then_falls_where_vehicles_are_small():
     assert floor(near)[0] == 150                      # 0.3 * 59^2 > 150: min_pixels
     assert floor(far)[0] == 20                        # 0.3 * 5.7^2 = 10: the noise floor
     assert abs(floor(np.array([[320.0, 30.0]]))[0] - 0.3 * 9 ** 2) < 4   # s = 9 there
+
+
+def test_least_side_drops_slivers_thinner_than_a_share_of_a_vehicle():
+    from vtrack.vision.blobs import BlobTests
+
+    floor = SizeFloor(640, 360, share=0.3, min_far=20, min_pixels=150,
+                      coef=np.array([4.0, 0.0, 60.0]), side_share=0.4)
+    centres = np.array([[320.0, 180.0]])               # s = 34 there: sides >= 13.6
+    assert floor.least_side(centres)[0] == pytest.approx(0.4 * 34.0)
+    assert SizeFloor(640, 360, 0.3, 20, 150).least_side(centres)[0] == 0   # before a fit
+    tests = BlobTests(150, 0.0, 1e9, 0.0, 0.0, least_side=floor.least_side)
+    # x, y, w, h, pixel count, all centred at (320, 180): a car, a sliver, a thin post
+    stats = np.array([[305, 165, 30, 30, 700], [290, 177, 60, 6, 300],
+                      [314, 150, 12, 60, 600]], float)
+    ok, _ = tests(stats, None)
+    assert ok.tolist() == [True, False, False]

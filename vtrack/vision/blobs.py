@@ -85,9 +85,11 @@ class BlobTests:
     floor (`min_pixels`, or `floor` at its centre: sizes.SizeFloor), its area (the mask's
     pixel area `unit` in the video's pixels times its count) at least `min_area` and at
     most `max_area`, its fill ratio (count / box area: foliage blobs are ragged) at least
-    `min_fill`, and with a motion map, something inside its box changed over the last
-    frames (`min_motion` of the box: ghosts of vehicles present at the start are static)
-    or it holds the centre of one of the `still` boxes (standing vehicles, hold.py)."""
+    `min_fill`, its width and height at least `least_side` at its centre (if given: a
+    share of a vehicle's side there, sizes.SizeFloor.least_side), and with a motion map,
+    something inside its box changed over the last frames (`min_motion` of the box:
+    ghosts of vehicles present at the start are static) or it holds the centre of one of
+    the `still` boxes (standing vehicles, hold.py)."""
 
     min_pixels: int
     min_area: float
@@ -96,6 +98,7 @@ class BlobTests:
     min_motion: float
     unit: float = 1.0
     floor: Callable[[np.ndarray], np.ndarray] | None = None
+    least_side: Callable[[np.ndarray], np.ndarray] | None = None   # per blob centre
 
     def __call__(self, stats: np.ndarray, moving: np.ndarray | None,
                  still: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -106,6 +109,9 @@ class BlobTests:
                  else self.floor(stats[:, :2] + stats[:, 2:4] / 2))
         ok = ((count >= least) & (count * self.unit >= self.min_area)
               & (count >= self.min_fill * stats[:, 2] * stats[:, 3]))
+        if self.least_side is not None:
+            side = self.least_side(stats[:, :2] + stats[:, 2:4] / 2)
+            ok &= (stats[:, 2] >= side) & (stats[:, 3] >= side)
         if moving is not None:
             x0, y0, bw, bh = stats[:, :4].astype(np.int64).T
             x1, y1 = x0 + bw, y0 + bh

@@ -3,8 +3,10 @@ prepare (prepare.py) -> stabilise (stabilise.py) -> background (background.py; o
 not learning under standing vehicles, hold.py) -> shadows (shadows.py) -> shift tolerance
 (jitter.py) -> blobs (blobs.py; optionally a noise floor in vehicle units, sizes.py, and
 the blobs read against the predicted boxes, pieces.py) -> split (split.py; optionally at
-their necks, necks.py, and by the expected footprint, footprint.py). docs/DETECTOR.md
-describes each stage and its switch.
+their necks, necks.py, and by the expected footprint, footprint.py); optionally (hybrid,
+`far_band`) the far end of a perspective view searched again at full resolution by a
+second detector of this kind (far.py). docs/DETECTOR.md describes each stage and its
+switch.
 `detect` is `locate(segment(image))`: `segment` runs the image stages, which need no track
 state, and returns what they found (`Foreground`); `locate` runs the blob stages on it,
 which divide merged blobs among the tracker's predictions.
@@ -42,8 +44,9 @@ Boxes, centres and areas are mapped back to full-resolution pixels.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import cv2
@@ -54,6 +57,9 @@ from vtrack.vision.background import Mog2Background, estimate_background
 from vtrack.vision.blobs import (BlobTests, MaskCleaner, MotionMap, find_blobs, kept_blobs,
                                  load_roi, polygon_mask)
 from vtrack.vision.changed import ChangedMap
+from vtrack.vision.far import (FAR_LAG, FAR_SAMPLE_SECONDS, FAR_SAMPLES, FAR_SHARE,
+                              FAR_SIDE_SHARE, Band, band_coef, far_band, most_rows,
+                              seam_keep)
 from vtrack.vision.hold import StandingBoxes, held_foreground, hold_mask
 from vtrack.vision.footprint import split_long
 from vtrack.vision.ghosts import StaticForeground
@@ -64,8 +70,8 @@ from vtrack.vision.prepare import FramePreparer, GainCompensator, downscale_fact
 from vtrack.vision.sizes import SizeFloor
 from vtrack.vision.shadows import drop_shadows, textured_shadow
 from vtrack.vision.split import holders, split_blob
-from vtrack.vision.stabilise import (IDENTITY, Stabiliser, border_edges_kept, compose, invert,
-                                     onto_mask, rescale, transform_boxes)
+from vtrack.vision.stabilise import (IDENTITY, Following, Stabiliser, border_edges_kept,
+                                     compose, invert, onto_mask, rescale, transform_boxes)
 
 Pieces = tuple[np.ndarray, np.ndarray]   # a blob's pieces: boxes (n, 4), pixel counts (n,)
 NO_PIECES: Pieces = (np.zeros((0, 4)), np.zeros(0))
@@ -102,6 +108,11 @@ class DetectorConfig:
                                       "(the fewest overlapping tiles that magnify it 1.75 "
                                       "times), for the far vehicles the whole frame shows "
                                       "too small; false: whole-frame passes only")
+    far_band: bool = _f(False, "hybrid: where the vehicles tracked so far say vehicles look "
+                              "small at the detection resolution (the far end of a "
+                              "perspective view of a frame wider than detect_width), a "
+                              "second MOG2 detector searches those rows at full "
+                              "resolution, its noise floor in vehicle units (far.py)")
     appearance_score: float = _f(0.3, "smallest appearance score (objectness x class) "
                                       "kept")
     appearance_alone_score: float = _f(0.4, "hybrid: smallest appearance score of a box no "
@@ -198,6 +209,10 @@ class DetectorConfig:
                                        "a blob of this share of a vehicle's expected area "
                                        "there is kept even under min_pixels (sizes.py); 0: "
                                        "min_pixels everywhere")
+    min_vehicle_side: float = _f(0.0, "noise floor in vehicle units: a blob narrower or "
+                                      "shorter than this share of a vehicle's expected "
+                                      "side at its place is dropped (sizes.py; foliage "
+                                      "slivers, edges); 0: off")
     min_pixels_far: int = _f(24, "the floor never falls below this (detection pixels)")
     split_footprint: bool = _f(False, "a blob longer than 2 vehicles at its place (the "
                                       "scale field learnt from the tracked boxes, "
@@ -259,6 +274,7 @@ class DetectorConfig:
             "stabilise_recheck_seconds": self.stabilise_recheck_seconds >= 0,
             "hold_speed": self.hold_speed > 0,
             "min_vehicle_share": self.min_vehicle_share >= 0,
+            "min_vehicle_side": 0 <= self.min_vehicle_side <= 1,
             "min_pixels_far": self.min_pixels_far >= 1,
             "static_seconds": self.static_seconds >= 0,
             "hold_min_seconds": self.hold_min_seconds >= 0,
@@ -319,6 +335,7 @@ class Aligned:
     motion: np.ndarray          # (2, 3) camera motion: the previous frame -> this one
     camera: np.ndarray          # (2, 3) the stabiliser's reference -> this frame
     moved: bool                 # the camera has moved so far (shift tolerance runs)
+    far: Aligned | None = None  # the far band's rows at full resolution (far.py)
 
 
 @dataclass
@@ -332,17 +349,27 @@ class Foreground:
     camera: np.ndarray          # (2, 3) the stabiliser's reference -> this frame
     learning: bool              # still in the warm-up: no detections yet
     held: np.ndarray | None = None   # (K, 4) standing boxes MOG2 did not learn (mask px)
+    far: Foreground | None = None    # the far band's (far.py)
 
 
 class MotionDetector:
     """MOG2 detector for one video of a fixed frame size; call `detect` once per frame."""
 
     def __init__(self, cfg: DetectorConfig, width: int, height: int, fps: float = 25.0,
-                 roi: np.ndarray | None = None) -> None:
+                 roi: np.ndarray | None = None, far: bool = False,
+                 roi_image: np.ndarray | None = None,
+                 field: np.ndarray | None = None,
+                 stabiliser: Stabiliser | Following | None = None) -> None:
         """`roi`: the region of interest, a polygon (n, 2) in frame pixels; foreground
-        outside it (and outside `cfg.roi_mask`) is ignored."""
+        outside it (and outside `cfg.roi_mask`, or `roi_image`: a 0/255 mask of the
+        frame's size that replaces it) is ignored. `far`: search the far band at full
+        resolution once the scale field shows one (far.py). `field`: the scale field
+        (sizes.SizeFloor) to start the noise floor in vehicle units from. `stabiliser`:
+        one to use instead of this detector's own (the far band's follows the first
+        detector's)."""
         cfg.validate()
         self.cfg = cfg
+        self.fps, self.roi = fps, roi
         self.width, self.height = width, height
         self.prepare = FramePreparer(width, height, cfg.detect_width, cfg.blur)
         self.scale = self.prepare.scale
@@ -352,7 +379,10 @@ class MotionDetector:
         self.background = Mog2Background(cfg.history, cfg.var_threshold, cfg.var_min,
                                          cfg.detect_shadows, cfg.shadow_ratio,
                                          cfg.learning_rate, cfg.warmup_frames)
-        mask = load_roi(cfg.roi_mask, size) if cfg.roi_mask else None
+        if roi_image is not None:
+            mask = cv2.resize(roi_image, size, interpolation=cv2.INTER_NEAREST)
+        else:
+            mask = load_roi(cfg.roi_mask, size) if cfg.roi_mask else None
         if roi is not None:
             mask = polygon_mask(roi / (self._sx, self._sy), size, mask)
         self.clean = MaskCleaner(mask, cfg.open_kernel, cfg.close_kernel)
@@ -361,12 +391,13 @@ class MotionDetector:
         self.motion = MotionMap() if cfg.min_motion > 0 or cfg.static_seconds > 0 else None
         self.ghosts = (StaticForeground(max(1, round(cfg.static_seconds * fps)))
                        if cfg.static_seconds > 0 else None)
-        self.stabiliser = (Stabiliser(*size, probe_frames=max(1, round(2.0 * fps)),
-                                      still_px=cfg.stabilise_still_px,
-                                      recheck_frames=round(cfg.stabilise_recheck_seconds * fps),
-                                      robust=cfg.stabilise_robust,
-                                      hold_frames=round(fps) if cfg.stabilise_robust else 0)
-                           if cfg.stabilise else None)
+        if stabiliser is None and cfg.stabilise:
+            stabiliser = Stabiliser(*size, probe_frames=max(1, round(2.0 * fps)),
+                                    still_px=cfg.stabilise_still_px,
+                                    recheck_frames=round(cfg.stabilise_recheck_seconds * fps),
+                                    robust=cfg.stabilise_robust,
+                                    hold_frames=round(fps) if cfg.stabilise_robust else 0)
+        self.stabiliser = stabiliser
         self._camera = IDENTITY.copy()   # reference -> current frame, full resolution
         self.standing = (StandingBoxes(cfg.hold_speed, fps, round(cfg.hold_min_seconds * fps),
                                        round(cfg.hold_max_seconds * fps))
@@ -379,14 +410,30 @@ class MotionDetector:
         self._located = 0
         # the scale field learnt from the predicted boxes: the noise floor in vehicle
         # units (sizes.py) and the expected footprint (footprint.py)
+        self.far_wanted = far and self.scale > 1
         self.sizes = (SizeFloor(*size, cfg.min_vehicle_share, cfg.min_pixels_far,
-                                cfg.min_pixels)
-                      if cfg.min_vehicle_share > 0 or cfg.split_footprint else None)
+                                cfg.min_pixels, field, cfg.min_vehicle_side)
+                      if cfg.min_vehicle_share > 0 or cfg.min_vehicle_side > 0
+                      or cfg.split_footprint or self.far_wanted else None)
         self.tests = BlobTests(cfg.min_pixels, cfg.min_area,
                                cfg.max_area_fraction * width * height, cfg.min_fill,
                                cfg.min_motion, self._sx * self._sy,
-                               self.sizes if cfg.min_vehicle_share > 0 else None)
+                               self.sizes if cfg.min_vehicle_share > 0 else None,
+                               self.sizes.least_side if cfg.min_vehicle_side > 0 else None)
         self.foreground: np.ndarray | None = None
+        # the far band (far.py): fixed by `locate`, searched from frame `_far_from` on
+        self.band: Band | None = None
+        self.far: MotionDetector | None = None
+        self._far_from: int | None = None
+        self._aligned = 0
+        # until the band is fixed, the rows it may take, aligned, every `_sample_every`
+        # frames: the band's background is estimated from them (far.py)
+        self._sampling = self.far_wanted
+        self._samples: deque[tuple[int, np.ndarray]] = deque(maxlen=FAR_SAMPLES)
+        self._sample_every = max(1, round(FAR_SAMPLE_SECONDS * fps))
+        self._sample_rows = most_rows(size[1], self._sy, height, cfg.min_pixels)
+        self._follow = (Following(self.stabiliser, self._sx, self._sy)
+                        if isinstance(self.stabiliser, Stabiliser) else None)
 
     @property
     def frames(self) -> int:
@@ -407,16 +454,18 @@ class MotionDetector:
         v = np.clip((points[:, 1] / self._sy).astype(int), 0, h - 1)
         return roi[v, u] > 0
 
-    def initialise(self, images: Iterable[np.ndarray], prepared: bool = False) -> None:
+    def initialise(self, images: Iterable[np.ndarray], prepared: bool = False,
+                   aligned: bool = False) -> None:
         """Start the background model from `images` (frames sampled across the first
         seconds of the video, aligned onto the stabiliser's reference; `prepared`: already
-        at the detection resolution, `prepare`d): their median (with
+        at the detection resolution, `prepare`d; `aligned`: already on the stabiliser's
+        reference, as the far band's samples are): their median (with
         `init_background_support`, their mode where few of them are near the median:
         background.estimate_background); detection then starts with the first frame."""
         samples = []
         for image in images:
             small = image if prepared else self.prepare(image)
-            if self.stabiliser is not None:
+            if self.stabiliser is not None and not aligned:
                 small = self.stabiliser.align(small)
             samples.append(small)
         if len(samples) < 3:
@@ -446,6 +495,7 @@ class MotionDetector:
     def align(self, image: np.ndarray, prepared: bool = False) -> Aligned:
         """The first image stages of the next frame, in frame order: prepare, stabilise,
         gain compensation."""
+        self._aligned += 1
         small = image if prepared else self.prepare(image)
         motion = IDENTITY
         if self.stabiliser is not None:
@@ -456,7 +506,27 @@ class MotionDetector:
         if self.gain is not None:
             small = self.gain(small)
         moved = self.stabiliser is not None and self.stabiliser.moved
-        return Aligned(small, prepared or small is not image, motion, self._camera, moved)
+        return Aligned(small, prepared or small is not image, motion, self._camera, moved,
+                       self._far_band(image, prepared))
+
+    def _far_band(self, image: np.ndarray, prepared: bool) -> Aligned | None:
+        """The far band's rows of the frame `image`, aligned by the band's detector once
+        it has started (its background estimated from the samples on its first frame);
+        before, every `_sample_every`-th frame's rows it may take, kept as a sample."""
+        if self._far_from is not None and self._aligned >= self._far_from:
+            if prepared:
+                raise ValueError("the far band needs the full-resolution frame")
+            rows = self.band.rows
+            if self._aligned == self._far_from:
+                self.far.initialise([crop[:rows] for number, crop in self._samples
+                                     if number < self._far_from], aligned=True)
+                self._samples.clear()
+            return self.far.align(image[:rows])
+        if self._sampling and not prepared and self._aligned % self._sample_every == 0:
+            crop = image[:self._sample_rows]
+            self._samples.append((self._aligned, crop.copy() if self._follow is None
+                                  else self._follow(crop)[0]))
+        return None
 
     def subtract(self, aligned: Aligned) -> Foreground:
         """The other image stages of the next aligned frame, in frame order: MOG2 (with the
@@ -483,8 +553,9 @@ class MotionDetector:
         self.foreground = self.clean(fg)
         moving = cv2.integral(changed) if changed is not None and cfg.min_motion > 0 else None
         learning = self.frames <= cfg.warmup_frames and not self.background.primed
+        far = self.far.subtract(aligned.far) if aligned.far is not None else None
         return Foreground(self.foreground, raw, moving, aligned.motion, aligned.camera,
-                          learning, held_boxes)
+                          learning, held_boxes, far)
 
     def locate(self, fg: Foreground, predicted: np.ndarray | None = None) -> Detections:
         """The blobs of a segmented frame, in its pixels.
@@ -500,6 +571,8 @@ class MotionDetector:
             self._held[self._located] = self.standing(on_mask)
         if self.sizes is not None:
             self.sizes.add(on_mask)
+            if self.far_wanted and self.band is None and self.sizes.coef is not None:
+                self._start_far_band()
         if fg.learning:
             return Detections.empty(fg.motion)
         contours, stats = find_blobs(fg.mask)
@@ -518,8 +591,45 @@ class MotionDetector:
         ref_boxes, boxes = boxes, transform_boxes(fg.camera, boxes)  # -> this frame's pixels
         if cfg.stabilise_robust:   # the fit follows the camera: the sway is a few pixels
             boxes = border_edges_kept(ref_boxes, boxes, self.width, self.height)
+        if fg.far is not None:
+            boxes, areas = self._with_far_band(boxes, areas, fg.far, predicted)
         return Detections(centre(boxes), boxes, areas, fg.motion,
                           ChangedMap(fg.labels, self._sx, self._sy, fg.camera))
+
+    def _start_far_band(self) -> None:
+        """Fix the far band from the scale field's first fit (far.py), if the view has one:
+        its detector, on the band's rows at full resolution, sees frames from FAR_LAG
+        frames on."""
+        mask_height = self.prepare.size[1]
+        band = far_band(self.sizes.coef, mask_height, self._sy, self.height,
+                        self.cfg.min_pixels)
+        self.far_wanted = False   # fixed once
+        if band is None:
+            self._sampling = False
+            self._samples.clear()
+            return
+        cfg = replace(self.cfg, detect_width=self.width, min_vehicle_share=FAR_SHARE,
+                      min_vehicle_side=FAR_SIDE_SHARE,
+                      roi_mask="", shift_radius=self.cfg.shift_radius * self.scale)
+        roi_image = None
+        if self.cfg.roi_mask:
+            roi_image = load_roi(self.cfg.roi_mask, (self.width, self.height))[:band.rows]
+        self.band = band
+        self.far = MotionDetector(cfg, self.width, band.rows, self.fps, self.roi,
+                                  roi_image=roi_image,
+                                  field=band_coef(self.sizes.coef, self._sy, mask_height,
+                                                  band.rows),
+                                  stabiliser=self._follow)
+        self._far_from = self._located + FAR_LAG
+
+    def _with_far_band(self, boxes: np.ndarray, areas: np.ndarray, far: Foreground,
+                       predicted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The blobs (frame pixels) with those above the far band's seam replaced by the
+        band detector's (far.py)."""
+        band = self.far.locate(far, predicted)
+        keep, keep_far = seam_keep(boxes, band.boxes, self.band)
+        return (np.concatenate([boxes[keep], band.boxes[keep_far]]),
+                np.concatenate([areas[keep], band.areas[keep_far]]))
 
     def _pieces(self, contours: list[np.ndarray], stats: np.ndarray, ok: np.ndarray,
                 small: np.ndarray, fg: Foreground, pred: np.ndarray

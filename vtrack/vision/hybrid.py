@@ -148,7 +148,8 @@ def make_detector(cfg: DetectorConfig, width: int, height: int, fps: float = 25.
                   ) -> MotionDetector | FusedDetector:
     """The detector `cfg.kind` names: MOG2 alone, appearance alone or both fused
     (`threaded`: FusedDetector's)."""
-    motion = MotionDetector(cfg, width, height, fps, roi)
+    motion = MotionDetector(cfg, width, height, fps, roi,
+                            far=cfg.kind == "hybrid" and cfg.far_band)
     if cfg.kind == "mog2":
         return motion
     model = AppearanceModel(cfg.appearance_model or None, min_score=cfg.appearance_score)

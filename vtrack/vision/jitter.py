@@ -29,6 +29,9 @@ import cv2
 import numpy as np
 
 
+FIRST_RADIUS = 2   # a larger radius tests first the window of this one (`_blends`)
+
+
 class ShiftTolerance:
     """Per frame: the foreground mask (0/255) without the pixels that a shift of the
     background by up to `radius` px explains."""
@@ -61,21 +64,26 @@ class ShiftTolerance:
         if cv2.countNonZero(candidates) == 0:
             return fg
         xs, ys = cv2.findNonZero(candidates).reshape(-1, 2).T
-        explained = self._blends(frame[ys, xs], background, ys, xs)
         out = fg.copy()
-        out[ys[explained], xs[explained]] = 0
+        for radius in sorted({min(self.radius, FIRST_RADIUS), self.radius}):
+            explained = self._blends(frame[ys, xs], background, ys, xs, radius)
+            out[ys[explained], xs[explained]] = 0
+            ys, xs = ys[~explained], xs[~explained]
         return out
 
     def _blends(self, colours: np.ndarray, background: np.ndarray, ys: np.ndarray,
-                xs: np.ndarray) -> np.ndarray:
+                xs: np.ndarray, radius: int) -> np.ndarray:
         """(K,) whether each colour c (K, 3) lies within the tolerance t of the per-channel
         interval between two 4-adjacent background pixels a, b of the window around
         (ys, xs) (image edges replicated): min(a, b) - t <= c <= max(a, b) + t in every
         channel, i.e. in no channel are both a < c - t or both b > c + t. Each window
         pixel's six such flags (below / above, per channel) are packed into one byte, so a
-        pair misses the colour where the AND of its bytes is non-zero."""
+        pair misses the colour where the AND of its bytes is non-zero. The window of a
+        smaller radius holds a subset of the pairs, so `__call__` tests the pixels it does
+        not explain, alone, with the full radius: the same result, at a fraction of the
+        cost where most are explained near by."""
         h, w = background.shape[:2]
-        d = np.arange(-self.radius, self.radius + 1)
+        d = np.arange(-radius, radius + 1)
         rows = np.clip(ys[:, None] + d, 0, h - 1)
         cols = np.clip(xs[:, None] + d, 0, w - 1)
         win = background[rows[:, :, None], cols[:, None, :]]          # K,n,n,3 uint8

@@ -37,12 +37,16 @@ class SizeFloor:
     """The per-place noise floor (mask pixels^2) learnt from predicted boxes."""
 
     def __init__(self, width: int, height: int, share: float, min_far: int,
-                 min_pixels: int) -> None:
+                 min_pixels: int, coef: np.ndarray | None = None,
+                 side_share: float = 0.0) -> None:
+        """`coef`: a fit to start from (a, b, c), until this floor's own first fit;
+        `side_share`: of the expected side, a blob's shortest width and height."""
         self.size = np.array([width, height], dtype=float)
         self.share, self.min_far, self.min_pixels = share, min_far, min_pixels
+        self.side_share = side_share
         self._samples: deque[np.ndarray] = deque(maxlen=MEMORY)   # x/W, y/H, s
         self._frames = 0
-        self.coef: np.ndarray | None = None   # a, b, c
+        self.coef: np.ndarray | None = coef   # a, b, c
 
     def add(self, boxes: np.ndarray) -> None:
         """Learn from one frame's predicted boxes (K, 4) x, y, w, h in mask pixels."""
@@ -62,6 +66,12 @@ class SizeFloor:
         if self.coef is None:
             return None
         return np.maximum(self.coef[0] + (centres / self.size) @ self.coef[1:], 0.0)
+
+    def least_side(self, centres: np.ndarray) -> np.ndarray:
+        """The shortest width and height (N,) of a blob at centres (N, 2): `side_share`
+        of a vehicle's expected side there (0 before the first fit), mask pixels."""
+        side = self.side(centres)
+        return np.zeros(len(centres)) if side is None else self.side_share * side
 
     def __call__(self, centres: np.ndarray) -> np.ndarray:
         """The floor (N,) at blob centres (N, 2), mask pixels."""

@@ -140,6 +140,7 @@ class Stabiliser:
         self._ref: np.ndarray | None = None
         self._pts: np.ndarray | None = None
         self._last = IDENTITY.copy()   # the last fit, reference -> frame, estimation px
+        self.applied = IDENTITY        # the last frame's M as returned
 
     @property
     def moved(self) -> bool:
@@ -238,6 +239,10 @@ class Stabiliser:
 
     def __call__(self, small: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(small warped onto the reference, M reference -> current) for the next frame."""
+        warped, self.applied = self._step(small)
+        return warped, self.applied
+
+    def _step(self, small: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         self.frames += 1
         if not self.active:
             if not self._moved_since(small):
@@ -279,6 +284,27 @@ class Stabiliser:
         if corner_shift(m, self.width, self.height) <= STILL_WARP_PX:
             return small, IDENTITY   # below what resampling could represent: no motion
         return _warp(small, m), m
+
+
+class Following:
+    """The stabiliser of a detector on the top rows of the same frames at (sx, sy) times
+    another's resolution (the far band, far.py): the other's `leader` estimate of each
+    frame, rescaled, rather than an estimate of its own. Called after the leader on each
+    frame."""
+
+    def __init__(self, leader: Stabiliser, sx: float, sy: float) -> None:
+        self.leader, self.sx, self.sy = leader, sx, sy
+
+    @property
+    def moved(self) -> bool:
+        """Whether the camera has moved so far (the leader's finding)."""
+        return self.leader.moved
+
+    def __call__(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(image warped onto the reference, M reference -> current) by the leader's M of
+        the same frame."""
+        m = rescale(self.leader.applied, self.sx, self.sy)
+        return _warp(image, m), m
 
 
 def _warp(small: np.ndarray, m: np.ndarray) -> np.ndarray:
