@@ -38,11 +38,12 @@ def test_band_where_the_scale_field_says_vehicles_are_small():
                                       height, MIN_PIXELS) <= height
 
 
-def test_band_field_gives_the_same_side_at_full_resolution():
-    coef, scale, mask_h, rows = np.array([4.0, 3.0, 60.0]), 2.0, 360, 300
+def test_band_field_gives_the_centre_columns_side_at_full_resolution():
+    coef, scale, mask_h, rows = np.array([4.0, 30.0, 60.0]), 2.0, 360, 300
     full = band_coef(coef, scale, mask_h, rows)
+    assert full[1] == 0   # the side on a row is the one at the centre column
     for x, y in [(100.0, 20.0), (900.0, 250.0)]:
-        main = coef[0] + coef[1] * (x / scale) / 640 + coef[2] * (y / scale) / mask_h
+        main = coef[0] + coef[1] * 0.5 + coef[2] * (y / scale) / mask_h
         band = full[0] + full[1] * x / 1280 + full[2] * y / rows
         assert band == pytest.approx(scale * main, rel=1e-12)
 

@@ -44,6 +44,8 @@ def test_least_side_drops_slivers_thinner_than_a_share_of_a_vehicle():
 
     floor = SizeFloor(640, 360, share=0.3, min_far=20, min_pixels=150,
                       coef=np.array([4.0, 0.0, 60.0]), side_share=0.4)
+    floor.add(np.array([[0.0, 0.0, 300.0, 300.0]] * MIN_BOXES))   # a fixed field
+    assert np.array_equal(floor.coef, [4.0, 0.0, 60.0])
     centres = np.array([[320.0, 180.0]])               # s = 34 there: sides >= 13.6
     assert floor.least_side(centres)[0] == pytest.approx(0.4 * 34.0)
     assert SizeFloor(640, 360, 0.3, 20, 150).least_side(centres)[0] == 0   # before a fit

@@ -363,8 +363,8 @@ class MotionDetector:
         """`roi`: the region of interest, a polygon (n, 2) in frame pixels; foreground
         outside it (and outside `cfg.roi_mask`, or `roi_image`: a 0/255 mask of the
         frame's size that replaces it) is ignored. `far`: search the far band at full
-        resolution once the scale field shows one (far.py). `field`: the scale field
-        (sizes.SizeFloor) to start the noise floor in vehicle units from. `stabiliser`:
+        resolution once the scale field shows one (far.py). `field`: a fixed scale field
+        (sizes.SizeFloor) for the noise floor in vehicle units (the far band's). `stabiliser`:
         one to use instead of this detector's own (the far band's follows the first
         detector's)."""
         cfg.validate()

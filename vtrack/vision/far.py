@@ -13,8 +13,9 @@ vehicle's blob is at most a few times the noise floor, and a vehicle the colour 
 (an outline) falls under it. The band's detector keeps the first's settings in scene units
 (its `shift_radius` times the downscale factor; its camera motion the first's, rescaled:
 stabilise.Following), and its noise floor is in vehicle units: clip(FAR_SHARE s^2,
-min_pixels_far, min_pixels) full-resolution pixels, each side at least FAR_SIDE_SHARE s
-(sizes.SizeFloor, started from the first detector's fit).
+min_pixels_far, min_pixels) full-resolution pixels, each side at least FAR_SIDE_SHARE s,
+with s the first detector's fit when the band is fixed, taken at the frame's centre column
+(band_coef) and fixed with it.
 
 It crops the rows [0, rows): the seam, where the first detector takes over (blob centres
 at or below it), plus SEAM_MARGIN vehicle sides, so that a vehicle centred above the seam
@@ -84,9 +85,13 @@ def most_rows(mask_height: int, scale: float, height: int, min_pixels: int) -> i
 
 def band_coef(coef: np.ndarray, scale: float, mask_height: int, rows: int) -> np.ndarray:
     """The scale field (`coef`, mask pixels of a frame `mask_height` rows tall) in the
-    band's own pixels: full resolution, v over its `rows` rows (u is unchanged)."""
+    band's own pixels (full resolution, v over its `rows` rows), taken at the frame's
+    centre column on every column: on a road plane seen by a camera without roll a
+    vehicle's image size depends on its row alone, and the fit's slope across the frame
+    (b) extrapolates to no size at all off the road, where the band would then take
+    any speck for a vehicle."""
     a, b, c = coef
-    return scale * np.array([a, b, c * rows / (mask_height * scale)])
+    return scale * np.array([a + 0.5 * b, 0.0, c * rows / (mask_height * scale)])
 
 
 def seam_keep(boxes: np.ndarray, band_boxes: np.ndarray, band: Band

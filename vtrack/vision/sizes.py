@@ -39,7 +39,7 @@ class SizeFloor:
     def __init__(self, width: int, height: int, share: float, min_far: int,
                  min_pixels: int, coef: np.ndarray | None = None,
                  side_share: float = 0.0) -> None:
-        """`coef`: a fit to start from (a, b, c), until this floor's own first fit;
+        """`coef`: a fixed field (a, b, c), nothing learnt (the far band's, far.py);
         `side_share`: of the expected side, a blob's shortest width and height."""
         self.size = np.array([width, height], dtype=float)
         self.share, self.min_far, self.min_pixels = share, min_far, min_pixels
@@ -47,9 +47,12 @@ class SizeFloor:
         self._samples: deque[np.ndarray] = deque(maxlen=MEMORY)   # x/W, y/H, s
         self._frames = 0
         self.coef: np.ndarray | None = coef   # a, b, c
+        self.fixed = coef is not None
 
     def add(self, boxes: np.ndarray) -> None:
         """Learn from one frame's predicted boxes (K, 4) x, y, w, h in mask pixels."""
+        if self.fixed:
+            return
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
         ok = (boxes[:, 2] > 1) & (boxes[:, 3] > 1)
         if ok.any():
