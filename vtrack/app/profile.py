@@ -50,7 +50,10 @@ MODULE_STAGES = (   # (table name, function of vtrack.vision.detect called by na
 )
 TRACKER_STAGES = (("tracker predict", "predict"), ("tracker update", "update"))
 APPEARANCE = "appearance model (YOLOX)"   # the fused detector's passes (vision/hybrid.py)
-ORDER = (START, BACKGROUND, DECODE, *(name for name, _ in DETECTOR_STAGES), APPEARANCE,
+FAR_BAND = "far band (full resolution)"   # the far band's detector, every stage (far.py)
+FAR_BAND_CALLS = ("_far_band", "_far_subtract", "_with_far_band")   # MotionDetector's
+ORDER = (START, BACKGROUND, DECODE, *(name for name, _ in DETECTOR_STAGES), FAR_BAND,
+         APPEARANCE,
          *(name for name, _ in TRACKER_STAGES), OUTPUTS)
 # the stages of `vtrack track`'s main thread when it overlaps the image stages (the rest)
 MAIN_THREAD = ("blobs", "pieces and large tracked blobs", "split merged blobs", "neck split",
@@ -88,14 +91,22 @@ class StageTimes:
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = defaultdict(float)
+        self._whole = False   # inside a call of a stage that times its inner stages too
 
-    def wrap(self, name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
-        """`fn` whose calls add their wall time to stage `name`."""
+    def wrap(self, name: str, fn: Callable[..., Any], whole: bool = False
+             ) -> Callable[..., Any]:
+        """`fn` whose calls add their wall time to stage `name`; `whole`: the stages it
+        calls count toward `name` alone (the far band's: a detector of its own), not
+        toward their own names. Calls in one thread (--profile runs every stage in one)."""
         def timed(*args: Any, **kwargs: Any) -> Any:
+            if self._whole:
+                return fn(*args, **kwargs)
             t0 = time.perf_counter()
+            self._whole = whole
             try:
                 return fn(*args, **kwargs)
             finally:
+                self._whole = False
                 self.seconds[name] += time.perf_counter() - t0
         return timed
 
@@ -135,13 +146,14 @@ class _TimedStage:
         return getattr(self._stage, name)
 
 
-def _replace(owner: Any, path: str, times: StageTimes, name: str) -> None:
+def _replace(owner: Any, path: str, times: StageTimes, name: str, whole: bool = False
+             ) -> None:
     *parents, attr = path.split(".")
     for parent in parents:
         owner = getattr(owner, parent, None)
     stage = getattr(owner, attr, None)
     if stage is not None:
-        timed = times.wrap(name, stage)
+        timed = times.wrap(name, stage, whole)
         setattr(owner, attr, timed if inspect.isroutine(stage) else _TimedStage(timed, stage))
 
 
@@ -158,6 +170,9 @@ def instrumented(detector: Any, tracker: Any, times: StageTimes) -> Iterator[Non
     for name, path in DETECTOR_STAGES:
         if path is not None:
             _replace(detector, path, times, name)
+    if getattr(detector, "far_wanted", False):
+        for call in FAR_BAND_CALLS:
+            _replace(detector, call, times, FAR_BAND, whole=True)
     for name, path in TRACKER_STAGES:
         _replace(tracker, path, times, name)
     saved = {fn: getattr(detect_module, fn) for _, fn in MODULE_STAGES

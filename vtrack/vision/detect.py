@@ -553,9 +553,12 @@ class MotionDetector:
         self.foreground = self.clean(fg)
         moving = cv2.integral(changed) if changed is not None and cfg.min_motion > 0 else None
         learning = self.frames <= cfg.warmup_frames and not self.background.primed
-        far = self.far.subtract(aligned.far) if aligned.far is not None else None
         return Foreground(self.foreground, raw, moving, aligned.motion, aligned.camera,
-                          learning, held_boxes, far)
+                          learning, held_boxes, self._far_subtract(aligned.far))
+
+    def _far_subtract(self, far: Aligned | None) -> Foreground | None:
+        """The far band detector's image stages of its aligned rows, if it has started."""
+        return self.far.subtract(far) if far is not None else None
 
     def locate(self, fg: Foreground, predicted: np.ndarray | None = None) -> Detections:
         """The blobs of a segmented frame, in its pixels.
