@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -148,21 +149,24 @@ def test_interrupt_flushes_valid_files(synth_video, tmp_path, read_video, termin
     frames = tmp_path / "frames"
     # The 250-frame run takes a few seconds: on a loaded machine this test's process can be
     # descheduled long enough for the run to end before the signal is sent. Such a try
-    # tested nothing, so the run is started again (at most 3 tries).
+    # (the run complete, exit 0) tested nothing, so the run is started again (at most 3
+    # tries), each waiting for frames of its own (the frames of a try before are stale).
     for _ in range(3):
+        shutil.rmtree(frames, ignore_errors=True)
         proc = subprocess.Popen([sys.executable, "-m", "vtrack", "track",
                                  str(src / "video.avi"), "--out", str(tmp_path), "--quiet",
                                  "--save-frames", "--save-video"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
         deadline = time.time() + 60
-        while time.time() < deadline and (not frames.exists()
-                                          or len(list(frames.iterdir())) < 30):
+        while time.time() < deadline and proc.poll() is None and (
+                not frames.exists() or len(list(frames.iterdir())) < 30):
             time.sleep(0.05)
         if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+        if proc.returncode != 0 or not json.loads(
+                (tmp_path / "summary.json").read_text())["complete"]:
             break
-        proc.communicate()
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["complete"] is False and 0 < summary["frames"] < 250
