@@ -22,14 +22,12 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from vtrack.boxes import iou                       # noqa: E402
 from vtrack.cli import main as vtrack              # noqa: E402
-from vtrack.evaluation.mot import evaluate         # noqa: E402
+from vtrack.evaluation.mot import detected, evaluate   # noqa: E402
 
 FAR_PX = 30.0   # a far vehicle: box side sqrt(w h) under this (full-resolution px)
 CONFIGS = {"far band off": "[detector]\nfar_band = false\n",
@@ -45,13 +43,8 @@ def detection_scores(gt: np.ndarray, dets: np.ndarray, skip: int) -> dict[str, f
             continue
         truth = gt[(gt[:, 0] == f) & (gt[:, 10] >= 0.7), 2:6]
         boxes = dets[dets[:, 0] == f, 2:6]
-        found = np.zeros(len(truth), bool)
-        if len(truth) and len(boxes):
-            m = iou(truth, boxes)
-            r, c = linear_sum_assignment(-m)
-            ok = m[r, c] >= 0.3
-            found[r[ok]] = True
-            matched += int(ok.sum())
+        found = detected(truth, boxes, 0.3)
+        matched += int(found.sum())
         far = np.sqrt(truth[:, 2] * truth[:, 3]) < FAR_PX
         n, hit = n + len(truth), hit + int(found.sum())
         n_far, hit_far = n_far + int(far.sum()), hit_far + int(found[far].sum())

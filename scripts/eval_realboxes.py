@@ -19,7 +19,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 ROOT = Path(__file__).resolve().parents[1]
 REALBOXES = ROOT.parent / "shared" / "videos" / "realboxes"
@@ -40,27 +39,18 @@ def load_detections(path: Path) -> dict[int, np.ndarray]:
     return {int(f): rows[rows[:, 0] == f, 2:6] for f in np.unique(rows[:, 0])}
 
 
-def matches(truth: np.ndarray, dets: np.ndarray, min_iou: float) -> int:
-    """One-to-one matches at IoU >= min_iou (Hungarian assignment on the IoU)."""
-    from vtrack.boxes import iou
-
-    if not len(truth) or not len(dets):
-        return 0
-    m = iou(truth, dets)
-    r, c = linear_sum_assignment(-m)
-    return int((m[r, c] >= min_iou).sum())
-
-
 def score(truth: dict[int, np.ndarray], dets: dict[int, np.ndarray], skip: int,
           min_iou: float = 0.3) -> dict[str, float]:
     """Recall and precision over the frames after the first `skip`."""
+    from vtrack.evaluation.mot import detected
+
     n_true = n_det = n_match = 0
     for f, boxes in truth.items():
         if f <= skip:
             continue
         d = dets.get(f, np.zeros((0, 4)))
         n_true, n_det = n_true + len(boxes), n_det + len(d)
-        n_match += matches(boxes, d, min_iou)
+        n_match += int(detected(boxes, d, min_iou).sum())
     for f, d in dets.items():   # detections in frames with no true box
         if f > skip and f not in truth:
             n_det += len(d)

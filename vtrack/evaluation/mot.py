@@ -127,6 +127,21 @@ def match_boxes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rows[matched], cols[matched]
 
 
+def detected(truth: np.ndarray, dets: np.ndarray, min_iou: float) -> np.ndarray:
+    """(n,) whether each true box of `truth` (n, 4) has a detection of `dets` (m, 4), one
+    to one at IoU >= min_iou: the Hungarian method on the IoU, the pairs under min_iou
+    then dropped (a detector's recall and precision: scripts/eval_realboxes.py,
+    eval_far.py)."""
+    from vtrack.boxes import iou
+
+    found = np.zeros(len(truth), dtype=bool)
+    if len(truth) and len(dets):
+        m = iou(truth, dets)
+        rows, cols = linear_sum_assignment(-m)
+        found[rows[m[rows, cols] >= min_iou]] = True
+    return found
+
+
 def drop_ignored(gt: np.ndarray, tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Remove ignore GT rows, and the tracker rows matched to them (MOTChallenge preprocessing).
 

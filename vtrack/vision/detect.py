@@ -431,9 +431,11 @@ class MotionDetector:
         self._sampling = self.far_wanted
         self._samples: deque[tuple[int, np.ndarray]] = deque(maxlen=FAR_SAMPLES)
         self._sample_every = max(1, round(FAR_SAMPLE_SECONDS * fps))
-        self._sample_rows = most_rows(size[1], self._sy, height, cfg.min_pixels)
+        self._sample_rows = (most_rows(size[1], self._sy, height, cfg.min_pixels)
+                             if self.far_wanted else 0)
         self._follow = (Following(self.stabiliser, self._sx, self._sy)
-                        if isinstance(self.stabiliser, Stabiliser) else None)
+                        if self.far_wanted and isinstance(self.stabiliser, Stabiliser)
+                        else None)
 
     @property
     def frames(self) -> int:

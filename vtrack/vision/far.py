@@ -71,16 +71,19 @@ def far_band(coef: np.ndarray, mask_height: int, scale: float, height: int,
     seam = int(v * mask_height * scale)
     if seam < MIN_ROWS:
         return None
-    margin = SEAM_MARGIN * small * scale
-    return Band(seam, min(height, int(np.ceil(seam + margin))))
+    return Band(seam, _rows(seam, scale, height, min_pixels))
 
 
 def most_rows(mask_height: int, scale: float, height: int, min_pixels: int) -> int:
     """The most full-resolution rows `far_band` may give a band (its seam at MAX_SHARE of
     the frame), for the same arguments."""
-    seam = int(MAX_SHARE * mask_height * scale)
-    return min(height, int(np.ceil(seam + SEAM_MARGIN * FAR_SIDE * np.sqrt(min_pixels)
-                                   * scale)))
+    return _rows(int(MAX_SHARE * mask_height * scale), scale, height, min_pixels)
+
+
+def _rows(seam: int, scale: float, height: int, min_pixels: int) -> int:
+    """The rows a band's detector crops: the seam and SEAM_MARGIN vehicle sides below it."""
+    margin = SEAM_MARGIN * FAR_SIDE * np.sqrt(min_pixels) * scale
+    return min(height, int(np.ceil(seam + margin)))
 
 
 def band_coef(coef: np.ndarray, scale: float, mask_height: int, rows: int) -> np.ndarray:
