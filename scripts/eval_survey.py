@@ -2,14 +2,14 @@
 
     # the regions of a scene: gates across a junction's approaches, or count lines across
     # a mast scene's road, derived from world.csv and calibration.toml, as a config
-    .venv/bin/python scripts/eval_survey.py regions SYNTH_DIR gates > gates.toml
+    .venv/bin/python scripts/eval_survey.py regions SYNTH_DIR gates [--in-view] > gates.toml
     .venv/bin/python scripts/eval_survey.py regions SYNTH_DIR lines > lines.toml
     vtrack track SYNTH_DIR/video.avi --config gates.toml --out RUN_DIR [--calibration ...]
-    .venv/bin/python scripts/eval_survey.py movements SYNTH_DIR RUN_DIR [--json]
+    .venv/bin/python scripts/eval_survey.py movements SYNTH_DIR RUN_DIR [--in-view] [--json]
     .venv/bin/python scripts/eval_survey.py speeds SYNTH_DIR RUN_DIR [--json]
     # the tracker's own ceiling: fed the true boxes (clean) instead of the detector's
     .venv/bin/python scripts/eval_survey.py truth-movements SYNTH_DIR
-        [--source appearance|motion] [--config CFG.toml] [--json]
+        [--source appearance|motion] [--config CFG.toml] [--in-view] [--json]
 
 Regions (world.csv: `frame,id,X_m,Y_m,speed_kmh,...`, the vehicles' footprint centres on the
 road; calibration.toml: the scene's exact homography). `gates`: the two roads cross at the
@@ -18,20 +18,24 @@ ARM_MIN_M (k-means of the unit vectors, k = 4, started on the axes; a road's axi
 opposite clusters). Each of the four approaches gets a gate across it (half-length: the 97th
 percentile of the road's vehicles' lateral offsets plus GATE_MARGIN_M) at the nearest
 distance beyond the crossing road's gate half-length plus ARM_CLEAR_M whose middle is inside
-the image and whose ends are in front of the camera (an approach with none within 40 m has no
-gate); named by compass direction (north = world +Y). `lines`: two count lines across the road (its direction: the principal axis of the
-positions) where the road's middle is at LINE_HEIGHTS of the image height (where a user
-would put them: in the near half of the view, not at the horizon), spanning the lateral
-offsets plus GATE_MARGIN_M.
+the image and whose ends are in front of the camera (an approach with none within 40 m has
+no gate); named by compass direction (north = world +Y). With `--in-view` a gate is cut to
+the picture less EDGE_MARGIN of its sides, where a user can draw it, and taken only where at
+least MIN_GATE_SHARE of it is left (else the next distance). `lines`: two count lines across
+the road (its direction: the principal axis of the positions) where the road's middle is at
+LINE_HEIGHTS of the image height (where a user would put them: in the near half of the view,
+not at the horizon), spanning the lateral offsets plus GATE_MARGIN_M.
 
 Truth (the same regions as the run used, read from RUN_DIR/summary.json, so the comparison
 is of tracking, not of geometry): the true vehicles' box centres (gt.csv) in frame order
 through the very rules `vtrack track` applies to its tracks (vtrack.analytics.gates
-GateCounter for movements, lines.LineCounter for crossings). `movements`: true and counted
-(movements.csv summed over bins and classes) per ordered pair of gates. `speeds`: each true
-crossing's speed is world.csv's speed_kmh of that vehicle in the frame of its crossing; per
-(bin, line, direction), the true 85th percentile (numpy's linear interpolation, as
-speeds.csv) against speeds.csv's p85_kmh of class all; frame n is at (n - 1) / fps s.
+GateCounter for movements, lines.LineCounter for crossings); with `--in-view` only the rows
+at least MIN_VISIBILITY visible, so a movement made out of sight is not counted.
+`movements`: true and counted (movements.csv summed over bins and classes) per ordered pair
+of gates. `speeds`: each true crossing's speed is world.csv's speed_kmh of that vehicle in
+the frame of its crossing; per (bin, line, direction), the true 85th percentile (numpy's
+linear interpolation, as speeds.csv) against speeds.csv's p85_kmh of class all; frame n is
+at (n - 1) / fps s.
 
 `truth-movements` takes the detector out: vtrack's tracker (default [tracker], or
 --config's) is fed the visible true boxes (vtrack.evaluation.oracle, clean) as an
@@ -56,11 +60,13 @@ import numpy as np
 from vtrack.analytics.calibration import parse_calibration
 from vtrack.analytics.gates import GateCounter
 from vtrack.analytics.lines import LineCounter
-from vtrack.evaluation.mot import read_mot
+from vtrack.evaluation.mot import MIN_VISIBILITY, read_mot
 
 ARM_MIN_M = 12.0        # world points farther than this from the centre show the approaches
 ARM_CLEAR_M = 4.0       # a gate lies this far beyond the other gates' half-lengths
 GATE_MARGIN_M = 1.5     # beyond the outermost vehicle positions across the road
+EDGE_MARGIN = 0.05      # a gate keeps this share of the picture's width/height off its edges
+MIN_GATE_SHARE = 0.5    # ... and at least this share of its length across the road
 COMPASS = ("east", "north", "west", "south")
 LINE_HEIGHTS = (0.5, 0.75)   # mast count lines cross the road's middle at these image heights
 
@@ -86,8 +92,10 @@ def _in_view(cal, pts: np.ndarray, width: int, height: int) -> tuple[np.ndarray,
     return px, ok and 0 <= px[0, 0] < width and 0 <= px[0, 1] < height
 
 
-def gate_regions(world: np.ndarray, cal, width: int, height: int) -> list[dict]:
-    """[[gates]] tables (px) across the approaches of a junction (module docstring)."""
+def gate_regions(world: np.ndarray, cal, width: int, height: int, in_view: bool = False
+                 ) -> list[dict]:
+    """[[gates]] tables (px) across the approaches of a junction (module docstring);
+    `in_view`: each cut to the picture (`_inside`), where a user can draw it."""
     xy = world[:, 2:4]
     far = xy[np.hypot(*xy.T) > ARM_MIN_M]
     u = far / np.hypot(*far.T)[:, None]
@@ -115,11 +123,36 @@ def gate_regions(world: np.ndarray, cal, width: int, height: int) -> list[dict]:
         for dist in np.arange(start, start + 40.0, 0.5):
             ends = np.array([dist * d, dist * d - half * n, dist * d + half * n])
             px, ok = _in_view(cal, ends, width, height)
-            if ok:
+            if not ok:
+                continue
+            line = _inside(px[1:], width, height) if in_view else px[1:]
+            if line is not None:
                 gates.append({"name": name, "line": [[round(float(x), 1), round(float(y), 1)]
-                                                     for x, y in px[1:]]})
+                                                     for x, y in line]})
                 break
     return gates
+
+
+def _inside(line: np.ndarray, width: int, height: int) -> np.ndarray | None:
+    """The part of a gate (2, 2) px inside the picture inset by EDGE_MARGIN of its sides (a
+    user draws a gate where the vehicles crossing it are in view), if at least
+    MIN_GATE_SHARE of it."""
+    mx, my = EDGE_MARGIN * width, EDGE_MARGIN * height
+    lo, hi = np.array([mx, my]), np.array([width - mx, height - my])
+    a, b = line
+    t0, t1 = 0.0, 1.0                        # Liang-Barsky: clip a + t (b - a) to [lo, hi]
+    for p, q in ((-(b - a), a - lo), (b - a, hi - a)):
+        for k in range(2):
+            if p[k] == 0:
+                if q[k] < 0:
+                    return None
+            elif p[k] < 0:
+                t0 = max(t0, q[k] / p[k])
+            else:
+                t1 = min(t1, q[k] / p[k])
+    if t1 - t0 < MIN_GATE_SHARE:
+        return None
+    return np.array([a + t0 * (b - a), a + t1 * (b - a)])
 
 
 def line_regions(world: np.ndarray, cal, width: int, height: int) -> list[dict]:
@@ -142,15 +175,17 @@ def line_regions(world: np.ndarray, cal, width: int, height: int) -> list[dict]:
     return lines
 
 
-def regions_toml(synth: Path, kind: str, width: int = 640, height: int = 360) -> str:
-    """The config text with the scene's gates or count lines."""
+def regions_toml(synth: Path, kind: str, width: int = 640, height: int = 360,
+                 in_view: bool = False) -> str:
+    """The config text with the scene's gates (`in_view`: cut to the picture) or count
+    lines."""
     cal = _calibration(synth)
     if cal.frame_size is not None:
         width, height = cal.frame_size
     world = _world(synth / "world.csv")
     if kind == "gates":
         return "".join(f'[[gates]]\nname = "{g["name"]}"\nline = {g["line"]}\n\n'
-                       for g in gate_regions(world, cal, width, height))
+                       for g in gate_regions(world, cal, width, height, in_view))
     return "count_lines = [\n" + "".join(
         f'  {{name = "{l["name"]}", points = {l["points"]}}},\n'
         for l in line_regions(world, cal, width, height)) + "]\n"
@@ -197,12 +232,20 @@ def _gate_passes(rows: np.ndarray, gates: list[dict], fps: float
     return {(m["from"], m["to"]): m["count"] for m in counter.summary()}, passes
 
 
-def evaluate_movements(synth: Path, run: Path) -> dict:
+def _truth(synth: Path, in_view: bool) -> np.ndarray:
+    """gt.csv's rows; `in_view`: only those at least MIN_VISIBILITY visible (the rows the
+    oracle and the scoring use: a movement made out of sight is not one a camera sees)."""
+    gt = read_mot(synth / "gt.csv", max_cols=11)
+    return gt[gt[:, 10] >= MIN_VISIBILITY] if in_view else gt
+
+
+def evaluate_movements(synth: Path, run: Path, in_view: bool = False) -> dict:
     """Counted / true per ordered pair of the run's gates; and per gate the tracks and the
-    true vehicles that passed it (a movement needs one track through two gates)."""
+    true vehicles that passed it (a movement needs one track through two gates); `in_view`:
+    the true vehicles' rows in view only (`_truth`)."""
     s = _summary(run)
     gates, fps = s["gates"], s["fps_video"] or 25.0
-    true, true_passes = _gate_passes(read_mot(synth / "gt.csv", max_cols=11), gates, fps)
+    true, true_passes = _gate_passes(_truth(synth, in_view), gates, fps)
     _, passes = _gate_passes(read_mot(run / "tracks.csv"), gates, fps)
     counted: dict[tuple[str, str], int] = defaultdict(int)
     for r in _csv(run / "movements.csv"):
@@ -226,18 +269,19 @@ def _movement_table(true: dict, counted: dict, true_passes: dict, passes: dict,
 
 
 def evaluate_truth_movements(synth: Path, source: str = "appearance",
-                             config_path: str | None = None) -> dict:
-    """Movements counted from vtrack's tracker fed the true boxes (module docstring)."""
+                             config_path: str | None = None, in_view: bool = False) -> dict:
+    """Movements counted from vtrack's tracker fed the true boxes (module docstring);
+    `in_view`: gates cut to the picture and the true vehicles' rows in view only."""
     from vtrack.app import config
     from vtrack.evaluation.oracle import oracle_detections, tracked_rows
     from vtrack.tracking.tracker import Tracker
 
     cal = _calibration(synth)
     width, height = cal.frame_size if cal.frame_size is not None else (640, 360)
-    gates = gate_regions(_world(synth / "world.csv"), cal, width, height)
+    gates = gate_regions(_world(synth / "world.csv"), cal, width, height, in_view)
     fps = 25.0   # `vtrack synth`'s default
     gt = read_mot(synth / "gt.csv", max_cols=11)
-    true, true_passes = _gate_passes(gt, gates, fps)
+    true, true_passes = _gate_passes(_truth(synth, in_view), gates, fps)
     tracker = Tracker(config.load(config_path).tracker, width, height, fps)
     rows = tracked_rows(tracker, oracle_detections(gt), int(gt[:, 0].max()), fps,
                         whole=source == "appearance")
@@ -284,24 +328,32 @@ def main(argv: list[str] | None = None) -> int:
     r = sub.add_parser("regions")
     r.add_argument("synth", type=Path)
     r.add_argument("kind", choices=("gates", "lines"))
+    in_view = {"action": "store_true", "help": "gates cut to the picture (where a user can "
+               "draw them) and the true vehicles' rows in view only"}
+    r.add_argument("--in-view", **in_view)
     for name in ("movements", "speeds"):
         q = sub.add_parser(name)
         q.add_argument("synth", type=Path)
         q.add_argument("run", type=Path)
         q.add_argument("--json", action="store_true")
+        if name == "movements":
+            q.add_argument("--in-view", **in_view)
     q = sub.add_parser("truth-movements")
     q.add_argument("synth", type=Path)
     q.add_argument("--source", choices=("appearance", "motion"), default="appearance")
     q.add_argument("--config")
+    q.add_argument("--in-view", **in_view)
     q.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
     if a.cmd == "regions":
-        print(regions_toml(a.synth, a.kind), end="")
+        print(regions_toml(a.synth, a.kind, in_view=a.in_view), end="")
         return 0
     if a.cmd == "truth-movements":
-        res = evaluate_truth_movements(a.synth, a.source, a.config)
+        res = evaluate_truth_movements(a.synth, a.source, a.config, a.in_view)
+    elif a.cmd == "movements":
+        res = evaluate_movements(a.synth, a.run, a.in_view)
     else:
-        res = (evaluate_movements if a.cmd == "movements" else evaluate_speeds)(a.synth, a.run)
+        res = evaluate_speeds(a.synth, a.run)
     if a.json:
         print(json.dumps(res))
     elif a.cmd in ("movements", "truth-movements"):

@@ -246,18 +246,25 @@ def test_eval_survey_on_a_tiny_input(tmp_path, load_script):
     assert speeds["p85_mae_kmh"] == 2.0 and speeds["p85_bias_kmh"] == -1.0
 
 
-def test_eval_survey_puts_gates_across_the_approaches(tmp_path, load_script):
-    """A crossing of two roads seen from straight above (10 px per metre, north up): one
-    gate across each approach, beyond the crossing road."""
-    ev = load_script("eval_survey")
-    (tmp_path / "calibration.toml").write_text("frame_size = [640, 640]\n" + "".join(
+def _crossing(folder: Path, height: int) -> None:
+    """calibration.toml and world.csv of two roads crossing at the world origin, seen from
+    straight above (10 px per metre, north up, the crossing at pixel (320, 320)) in a
+    640 x `height` picture, vehicles along both within 30 m, 2 m either side of the axes."""
+    (folder / "calibration.toml").write_text(f"frame_size = [640, {height}]\n" + "".join(
         f"[[points]]\nimage = [{320 + 10 * x}, {320 - 10 * y}]\nworld = [{x}, {y}]\n"
         for x, y in ((-10, -10), (10, -10), (10, 10), (-10, 10))))
     rows = [f"{k},{k},{s},{lat},50,4.5,car" for k, (s, lat) in enumerate(
         (s, lat) for s in range(-30, 31) for lat in (-2, 2))]
     rows += [f"{1000 + k},{k},{lat},{s},50,4.5,car" for k, (s, lat) in enumerate(
         (s, lat) for s in range(-30, 31) for lat in (-2, 2))]
-    _write_csv(tmp_path / "world.csv", "frame,id,X_m,Y_m,speed_kmh,length_m,class", rows)
+    _write_csv(folder / "world.csv", "frame,id,X_m,Y_m,speed_kmh,length_m,class", rows)
+
+
+def test_eval_survey_puts_gates_across_the_approaches(tmp_path, load_script):
+    """A crossing of two roads seen from straight above (10 px per metre, north up): one
+    gate across each approach, beyond the crossing road."""
+    ev = load_script("eval_survey")
+    _crossing(tmp_path, 640)
     text = ev.regions_toml(tmp_path, "gates")
     import tomllib
 
@@ -267,6 +274,58 @@ def test_eval_survey_puts_gates_across_the_approaches(tmp_path, load_script):
                      "north": [[355.0, 245.0], [285.0, 245.0]],
                      "west": [[245.0, 355.0], [245.0, 285.0]],
                      "south": [[355.0, 395.0], [285.0, 395.0]]}
+
+
+def test_eval_survey_cuts_gates_to_the_picture_in_view(tmp_path, load_script):
+    """--in-view: a gate reaching out of the picture is cut 5 % inside its edges; one whose
+    part in view is under half of it is moved out along its approach, or there is none."""
+    ev = load_script("eval_survey")
+    w, h = 640, 360
+    # across the picture's right edge: 80 % inside the 5 % margin (x 320 .. 608 of 320 .. 680)
+    cut = ev._inside(np.array([[320.0, 100.0], [680.0, 100.0]]), w, h)
+    np.testing.assert_allclose(cut, [[320.0, 100.0], [608.0, 100.0]])
+    assert ev._inside(np.array([[600.0, 100.0], [900.0, 100.0]]), w, h) is None   # 3 %
+    assert ev._inside(np.array([[700.0, 10.0], [700.0, 300.0]]), w, h) is None    # outside
+    # the junction of test_eval_survey_puts_gates_across_the_approaches in a 640x400
+    # picture: the west gate (x 245) is in view; the south gate (y 395) lies below the
+    # margin (y 380), and farther out along its approach the gate only goes lower: none
+    _crossing(tmp_path, 400)
+    import tomllib
+
+    every = {g["name"] for g in tomllib.loads(ev.regions_toml(tmp_path, "gates"))["gates"]}
+    seen = {g["name"]: g["line"] for g in
+            tomllib.loads(ev.regions_toml(tmp_path, "gates", in_view=True))["gates"]}
+    assert every == {"east", "north", "west", "south"}
+    assert seen["west"] == [[245.0, 355.0], [245.0, 285.0]]
+    assert "south" not in seen
+    assert all(0.05 * 640 <= x <= 0.95 * 640 and 0.05 * 400 <= y <= 0.95 * 400
+               for line in seen.values() for x, y in line)
+
+
+def test_eval_survey_in_view_truth_counts_only_movements_seen(tmp_path, load_script):
+    """--in-view: a true vehicle passes a gate only where its rows are in view (at least
+    MIN_VISIBILITY visible): one hidden while it crosses gate A makes no movement."""
+    ev = load_script("eval_survey")
+    synth, run = tmp_path / "synth", tmp_path / "run"
+    synth.mkdir()
+    run.mkdir()
+    gt = []
+    for vid, hidden in ((1, ()), (2, range(1, 5))):     # vehicle 2 unseen in frames 1-4
+        for f in range(1, 9):
+            vis = 0.1 if f in hidden else 1.0
+            gt.append(f"{f},{vid},{50 * f},{90 + 40 * vid},20,20,1,-1,-1,-1,{vis}")
+    (synth / "gt.csv").write_text("".join(r + "\n" for r in gt))
+    (run / "tracks.csv").write_text("")
+    (run / "summary.json").write_text(json.dumps({
+        "fps_video": 10.0, "bin_seconds": 1.0,
+        "gates": [{"name": "A", "line": [[100, 0], [100, 300]]},
+                  {"name": "B", "line": [[300, 0], [300, 300]]}], "counts": []}))
+    _write_csv(run / "movements.csv", "bin_start_s,bin_end_s,from,to,class,count",
+               ["0,10,A,B,all,1"])
+    assert ev.evaluate_movements(synth, run)["true"] == 2
+    seen = ev.evaluate_movements(synth, run, in_view=True)
+    assert seen["true"] == 1 and seen["matched"] == 1
+    assert seen["passes"]["A"]["true"] == 1 and seen["passes"]["B"]["true"] == 2
 
 
 def test_speed_at_a_moment_is_the_road_displacement_over_one_second():

@@ -8,9 +8,9 @@ duplicates) and the fragment stage's gap record after this frame.
    changed map, whether it is road or body;
 2. gate and assign: Mahalanobis gating on k-d-tree candidates, optimal assignment per
    connected group (vtrack.tracking.association); a whole box (provenance.py) is measured
-   as the vehicle: its centre, and its sides (those the border does not cut) within the
-   size gate of the track's size and in the cost; whole boxes are assigned first, blobs
-   to the tracks left;
+   as the vehicle: its centre, and its sides' Mahalanobis distance from the track's size
+   in the cost (a side the border cuts counts only where it is larger than the track's);
+   whole boxes are assigned first, blobs to the tracks left;
 3. shared blobs (`resolve_shared`): a detection holding the predicted centres of several
    confirmed tracks is a duplicate (the younger tracks are deleted) or a merge (the tracks
    coast); a whole box (provenance.py) is never a merge;

@@ -16,9 +16,9 @@ a whole box as whole and keeps its blob heuristics for motion-only measurements:
   its centre in a confirmed track's box (a vehicle behind another), unless it is that
   track's box (IoU >= `blob_fit_iou`);
 - association (associator.py): a whole box that no border cuts measures the vehicle's
-  centre, and its sides are compared with the track's size: a side the border does not cut
-  must lie in the size gate (`size_gate_probability`), and the sides' distance adds to the
-  assignment's cost (a vehicle entering where another leaves is not the one leaving);
+  centre, and its sides' squared Mahalanobis distance from the track's size adds to the
+  assignment's cost (box_size.d2; a side the border cuts counts only where it is larger
+  than the track's): a vehicle entering where another leaves is not the one leaving;
   whole boxes are assigned before blobs (a blob's cost has no size term: a piece nearer
   the predicted centre would otherwise win the track from its vehicle's whole box);
 - sizes (sizes.py): a whole box is never a partial view behind a static occluder, and a
