@@ -33,19 +33,12 @@ from collections.abc import Callable
 import numpy as np
 
 from vtrack.boxes import intersection, iou
-from vtrack.evaluation.mot import MATCH_IOU, drop_ignored, match_boxes
+from vtrack.evaluation.mot import MATCH_IOU, detected, drop_ignored
 
 CLASSES = ("coasted", "false detection", "box off a true detection", "other")
 SHAPES = ("several", "around one", "inside one", "elsewhere")
 HELD = 0.5     # a vehicle this much inside a box is held by it
 INSIDE = 0.7   # a box this much on one vehicle is a piece of it
-
-
-def _matched(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(len(a),) whether each box of a has a one-to-one match in b (`match_boxes`)."""
-    out = np.zeros(len(a), dtype=bool)
-    out[match_boxes(a, b)[0]] = True
-    return out
 
 
 def _unmatched_rows(gt: np.ndarray, tracks: np.ndarray,
@@ -59,7 +52,7 @@ def _unmatched_rows(gt: np.ndarray, tracks: np.ndarray,
     for frame in np.unique(tracks[:, 0]):
         ti = np.flatnonzero(tracks[:, 0] == frame)
         truth = gt[gt[:, 0] == frame, 2:6]
-        labels[ti] = np.where(_matched(tracks[ti, 2:6], truth), -1,
+        labels[ti] = np.where(detected(tracks[ti, 2:6], truth), -1,
                               judge(tracks[ti], truth, frame))
     return tracks, labels
 
@@ -72,7 +65,7 @@ def classify_false_positives(gt: np.ndarray, detections: np.ndarray, tracks: np.
     def cause(rows: np.ndarray, truth: np.ndarray, frame: float) -> np.ndarray:
         boxes = rows[:, 2:6]
         dets = detections[detections[:, 0] == frame, 2:6]
-        true_det = _matched(dets, truth)
+        true_det = detected(dets, truth)
         coasted = rows[:, 6] < 1.0
         false_det = (iou(boxes, dets[~true_det]) >= MATCH_IOU).any(axis=1)
         off_true = (intersection(boxes[:, None], dets[true_det][None]) > 0).any(axis=1)

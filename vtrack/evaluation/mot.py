@@ -115,30 +115,26 @@ def ignore_mask(gt: np.ndarray) -> np.ndarray:
     return mask
 
 
-def match_boxes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def match_boxes(a: np.ndarray, b: np.ndarray, min_iou: float = MATCH_IOU
+                ) -> tuple[np.ndarray, np.ndarray]:
     """One-to-one pairs (rows into a, cols into b) of boxes a (n, 4) and b (m, 4) with
-    IoU >= MATCH_IOU: the Hungarian method on IoU, trackeval's threshold (less a float eps)."""
+    IoU >= min_iou: the Hungarian method on IoU, the threshold less a float eps (trackeval's
+    MATCH_IOU by default)."""
     if len(a) == 0 or len(b) == 0:
         return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
     iou = box_iou(a, b)
-    iou[iou < MATCH_IOU - np.finfo(float).eps] = 0.0
+    iou[iou < min_iou - np.finfo(float).eps] = 0.0
     rows, cols = linear_sum_assignment(-iou)
     matched = iou[rows, cols] > 0
     return rows[matched], cols[matched]
 
 
-def detected(truth: np.ndarray, dets: np.ndarray, min_iou: float) -> np.ndarray:
-    """(n,) whether each true box of `truth` (n, 4) has a detection of `dets` (m, 4), one
-    to one at IoU >= min_iou: the Hungarian method on the IoU, the pairs under min_iou
-    then dropped (a detector's recall and precision: scripts/eval_realboxes.py,
-    eval_far.py)."""
-    from vtrack.boxes import iou
-
+def detected(truth: np.ndarray, dets: np.ndarray, min_iou: float = MATCH_IOU) -> np.ndarray:
+    """(n,) whether each box of `truth` (n, 4) has a box of `dets` (m, 4), one to one at
+    IoU >= min_iou (`match_boxes`): a detector's recall and precision
+    (scripts/eval_realboxes.py, eval_far.py), a false positive's cause (false_positives)."""
     found = np.zeros(len(truth), dtype=bool)
-    if len(truth) and len(dets):
-        m = iou(truth, dets)
-        rows, cols = linear_sum_assignment(-m)
-        found[rows[m[rows, cols] >= min_iou]] = True
+    found[match_boxes(truth, dets, min_iou)[0]] = True
     return found
 
 
