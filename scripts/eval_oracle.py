@@ -95,7 +95,8 @@ def main(argv: list[str] | None = None) -> int:
         scores = {}
         for name in trackers:
             rows = (tracked_rows(Tracker(cfg.tracker, clip.width, clip.height, fps), dets,
-                                 frames, fps, whole=args.source == "appearance")
+                                 frames, fps, whole=args.source == "appearance",
+                                 video=src / "video.avi")
                     if name == "vtrack" else mot_array(peer_rows(name, _mot_columns(dets),
                                                                  frames, fps)))
             s = evaluate_arrays(scored, rows)

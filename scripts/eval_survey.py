@@ -284,7 +284,7 @@ def evaluate_truth_movements(synth: Path, source: str = "appearance",
     true, true_passes = _gate_passes(_truth(synth, in_view), gates, fps)
     tracker = Tracker(config.load(config_path).tracker, width, height, fps)
     rows = tracked_rows(tracker, oracle_detections(gt), int(gt[:, 0].max()), fps,
-                        whole=source == "appearance")
+                        whole=source == "appearance", video=synth / "video.avi")
     counted, passes = _gate_passes(rows, gates, fps)
     return _movement_table(true, counted, true_passes, passes, [g["name"] for g in gates])
 

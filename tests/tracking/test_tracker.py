@@ -9,6 +9,7 @@ from vtrack.tracking.filter_bank import CentreColumns
 from vtrack.tracking.lifecycle import Initiator
 from vtrack.tracking.measurements import (HistoryColumns, difference_operator,
                                           finite_difference_measurement)
+from vtrack.tracking.reidentifier import ReidColumns
 from vtrack.tracking.reporter import leaves_on_its_way
 from vtrack.tracking.sizes import Sizes
 from vtrack.tracking.table import TrackTable
@@ -486,6 +487,7 @@ def test_coasted_tail_out_of_the_image_is_reported_only_on_the_vehicles_way(
     first = np.array([[100.0, 170.0, 40.0, 20.0]])
     x0 = np.array([[120.0 + moved[0], 180.0 + moved[1], *velocity, 0.0, 0.0]])
     table = TrackTable(CentreColumns(x0, np.eye(6)[None]), HistoryColumns.new(1, 0.0),
-                       Sizes(TrackerConfig(), W, H).new(first), Initiator(8).new(first))
+                       Sizes(TrackerConfig(), W, H).new(first), Initiator(8).new(first),
+                       ReidColumns.new(1, 0.0))
     table.last_box = table.origin + np.array([*moved, *moved], dtype=float)
     assert leaves_on_its_way(table, 0) is reported

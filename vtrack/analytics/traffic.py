@@ -129,7 +129,7 @@ class TrafficAnalytics:
             for tid, c, score in zip(ft.ids.tolist(), looks.tolist(), looks_score.tolist()):
                 if c >= 0:
                     self._record(int(tid), frame, time).looks.add(VEHICLE_CLASSES[c], score)
-        alive = set(ft.ids.tolist())
+        alive = set(ft.ids.tolist()) | set(ft.held.tolist())   # held: may come back
         for tid in [t for t in self.vehicles if t not in alive]:
             self._finish(tid)
 

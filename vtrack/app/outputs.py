@@ -79,14 +79,15 @@ class Sink(Protocol):
 
 class TrackEnds:
     """Which track ids have ended after each step: ids seen (among the confirmed tracks or
-    in the rows) that are no longer among the tracker's tracks. A deleted track's last rows
-    come out in the step that deletes it, so none of its rows follow."""
+    in the rows) that are no longer among the tracker's tracks nor held for a vehicle that
+    may come back (FrameTracks.held). A deleted track's last rows come out in the step that
+    deletes it, so none of its rows follow."""
 
     def __init__(self) -> None:
         self._active: set[int] = set()
 
     def update(self, tracks: FrameTracks) -> list[int]:
-        current = set(tracks.ids.tolist())
+        current = set(tracks.ids.tolist()) | set(tracks.held.tolist())
         seen = self._active | set(tracks.rows[:, 1].astype(int).tolist())
         self._active = current
         return sorted(seen - current)

@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 BACKGROUND = "background estimate"
 DECODE = "decode/transfer (wait for frame)"
 OUTPUTS = "outputs (files, trails, flush)"
+COLOURS = "colour signatures (re-identification)"
 START = "start-up and close"
 DETECTOR_STAGES = (   # (table name, MotionDetector attribute)
     ("prepare (downscale, blur)", "prepare"),
@@ -54,11 +55,11 @@ FAR_BAND = "far band (full resolution)"   # the far band's detector, every stage
 FAR_BAND_CALLS = ("_far_band", "_far_subtract", "_with_far_band")   # MotionDetector's
 ORDER = (START, BACKGROUND, DECODE, *(name for name, _ in DETECTOR_STAGES), FAR_BAND,
          APPEARANCE,
-         *(name for name, _ in TRACKER_STAGES), OUTPUTS)
+         COLOURS, *(name for name, _ in TRACKER_STAGES), OUTPUTS)
 # the stages of `vtrack track`'s main thread when it overlaps the image stages (the rest)
 MAIN_THREAD = ("blobs", "pieces and large tracked blobs", "split merged blobs", "neck split",
-               "footprint split", "standing boxes", "tracker predict", "tracker update",
-               OUTPUTS)
+               "footprint split", "standing boxes", COLOURS, "tracker predict",
+               "tracker update", OUTPUTS)
 # (without --profile the appearance passes run in a thread of their own)
 # the image stages `vtrack track` runs in its first worker thread (MotionDetector.align);
 # the other image stages run in the second (subtract)

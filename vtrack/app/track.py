@@ -35,6 +35,7 @@ from vtrack.errors import InputError
 from vtrack.fileio import replace_dir, write_json
 from vtrack.tracking.tracker import FrameTracks, Tracker
 from vtrack.vision.appearance import VEHICLE_CLASSES
+from vtrack.vision.colour import signatures
 from vtrack.io.sources import parse_source
 
 
@@ -183,8 +184,10 @@ class TrackJob:
                 # predicted vehicles among them.
                 predicted = tracker.predict(frame.time, fg.motion)
                 dets = detector.locate(fg, predicted)
+                with self._stage(profile.COLOURS):
+                    colours = signatures(frame.image, dets.boxes)
                 ft = tracker.update(frame.index, frame.time, dets.centers, dets.boxes,
-                                    dets.changed, dets.seen)
+                                    dets.changed, dets.seen, colours)
                 self.frames = frame.index
                 with self._stage(profile.OUTPUTS):
                     if self.detections is not None:

@@ -23,6 +23,7 @@ camera's sight on one side of the line, which a counter on the video can only gu
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -124,18 +125,35 @@ def hidden_crossings(gt: np.ndarray, lines: Sequence[Sequence[float]]) -> list[l
 
 
 def tracked_rows(tracker: Any, dets: np.ndarray, frames: int, fps: float,
-                 whole: bool = False) -> np.ndarray:
+                 whole: bool = False, video: str | Path | None = None) -> np.ndarray:
     """MOT rows (R, 10), sorted by frame then id, of `tracker` (vtrack's Tracker, or any
     object whose step(frame, t, centres, boxes) returns FrameTracks) run on detections
     (frame, x, y, w, h) over frames 1..frames at `fps`. `whole`: the detections are given
     as boxes the appearance model drew (`seen`, tracking/provenance.py), else as motion
-    blobs. A row emitted again for the same (frame, id) replaces the earlier one."""
+    blobs. `video`: the clip, whose frames give the boxes their colour signatures
+    (vision/colour.py; vtrack's re-identification reads them). A row emitted again for the
+    same (frame, id) replaces the earlier one."""
     rows: dict[tuple[int, int], np.ndarray] = {}
-    for n in range(1, frames + 1):
-        d = dets[dets[:, 0] == n, 1:5]
-        extra = {"seen": np.ones(len(d), dtype=bool)} if whole else {}
-        for r in tracker.step(n, (n - 1) / fps, d[:, :2] + d[:, 2:] / 2, d, **extra).rows:
-            rows[int(r[0]), int(r[1])] = r[:6]
+    reader = None
+    if video is not None:
+        import cv2
+
+        from vtrack.vision.colour import signatures
+
+        reader = cv2.VideoCapture(str(video))
+    try:
+        for n in range(1, frames + 1):
+            d = dets[dets[:, 0] == n, 1:5]
+            extra: dict[str, Any] = {"seen": np.ones(len(d), dtype=bool)} if whole else {}
+            if reader is not None:
+                ok, image = reader.read()
+                if ok:
+                    extra["colours"] = signatures(image, d)
+            for r in tracker.step(n, (n - 1) / fps, d[:, :2] + d[:, 2:] / 2, d, **extra).rows:
+                rows[int(r[0]), int(r[1])] = r[:6]
+    finally:
+        if reader is not None:
+            reader.release()
     return mot_array(np.array([rows[k] for k in sorted(rows)]).reshape(-1, 6))
 
 

@@ -91,6 +91,18 @@ class TrackerConfig:
     max_coast_seconds: float = field(default=1.0, metadata=_h(
         "time a confirmed track coasts on its prediction without a detection before it is "
         "deleted, s"))
+    reid_seconds: float = field(default=3.0, metadata=_h(
+        "a confirmed track lost in view (undetected for `max_coast_seconds`) is remembered "
+        "for this long after its last detection: a track that continues it takes its id "
+        "(reidentifier.py; 0: off), s"))
+    reid_gate: float = field(default=1.0, metadata=_h(
+        "a continuing track's centre lies within this many box scales of the lost track's "
+        "prediction, plus half the way that prediction went since its last detection"))
+    reid_scale_ratio: float = field(default=2.0, metadata=_h(
+        "... and its box scale differs from the lost track's by less than this factor"))
+    reid_colour: float = field(default=0.7, metadata=_h(
+        "... and its colour matches the lost track's: Bhattacharyya coefficient of their "
+        "colour signatures at least this (vision/colour.py)"))
     smooth_coasted: bool = field(default=True, metadata=_h(
         "report a coasted stretch that a detection confirms smoothed (fixed-interval RTS "
         "smoother over the predictions, reporter.py), not as the straight prediction"))
@@ -177,7 +189,7 @@ class TrackerConfig:
         if self.measurement not in MEASUREMENTS:
             raise ValueError(f"tracker.measurement must be one of {', '.join(MEASUREMENTS)}")
         for name in ("jerk", "detection_sigma", "init_speed_sigma", "init_accel_sigma",
-                     "max_gate", "split_evidence", "size_psd", "size_sigma",
+                     "max_gate", "split_evidence", "reid_gate", "size_psd", "size_sigma",
                      "init_size_rate_sigma", "size_rate_seconds", "size_shrink_seconds", "max_stand_seconds", "confirm_seconds", "max_coast_seconds",
                      "tentative_coast_seconds"):
             if not getattr(self, name) > 0:
@@ -197,10 +209,14 @@ class TrackerConfig:
         for name in ("gate_candidates", "box_candidates"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise ValueError(f"tracker.{name} must be an integer >= 1")
+        if not 0 < self.reid_colour <= 1:
+            raise ValueError("tracker.reid_colour must be in (0, 1]")
+        if not self.reid_scale_ratio > 1:
+            raise ValueError("tracker.reid_scale_ratio must be > 1")
         if not 0 < self.gap_changed_share <= 1:
             raise ValueError("tracker.gap_changed_share must be in (0, 1]")
         for name in ("confirm_motion", "edge_margin", "size_grow_seconds", "stand_speed",
                      "split_hold_seconds", "duplicate_seconds", "whole_duplicate_seconds",
-                     "coast_accel_rate"):
+                     "coast_accel_rate", "reid_seconds"):
             if getattr(self, name) < 0:
                 raise ValueError(f"tracker.{name} must be >= 0")

@@ -172,18 +172,23 @@ class Confirmer:
         self.hits = max(1, int(np.ceil(cfg.confirm_fraction * self.window - 1e-9)))
         self.next_id = 1
 
-    def confirm(self, tracks: TrackTable, hit: np.ndarray, eligible: np.ndarray) -> None:
-        """Give an id to each tentative, `eligible` track detected this frame with M hits in
-        its window that moves: an edge of its detected box has moved `confirm_motion` box
-        scales from where it was first seen (an edge, not the centre: a big vehicle coming
-        into view at the image border grows there, its centre moves at half its speed;
-        swaying leaves and flicker go nowhere), or that the appearance model has seen (a
-        vehicle by its looks, standing or not: a queue from the first frame)."""
+    def ready(self, tracks: TrackTable, hit: np.ndarray, eligible: np.ndarray) -> np.ndarray:
+        """The tentative, `eligible` tracks detected this frame with M hits in their window
+        that move: an edge of the detected box has moved `confirm_motion` box scales from
+        where it was first seen (an edge, not the centre: a big vehicle coming into view at
+        the image border grows there, its centre moves at half its speed; swaying leaves and
+        flicker go nowhere), or the appearance model has seen them (a vehicle by its looks,
+        standing or not: a queue from the first frame). Returns their indices."""
         cfg = self.cfg
         moved = (np.abs(tracks.last_box - tracks.origin).max(axis=1)
                  >= cfg.confirm_motion * tracks.scale) | tracks.seen
-        ready = ((tracks.id == 0) & eligible & hit & moved
-                 & (np.bitwise_count(tracks.hitmask) >= self.hits))
-        new = np.flatnonzero(ready)
+        return np.flatnonzero((tracks.id == 0) & eligible & hit & moved
+                              & (np.bitwise_count(tracks.hitmask) >= self.hits))
+
+    def confirm(self, tracks: TrackTable, idx: np.ndarray, ids: np.ndarray) -> None:
+        """Confirm tracks idx with the ids they continue (reidentifier.py), a new id each
+        where that is 0, handed out in order."""
+        new = idx[ids == 0]
+        tracks.id[idx] = ids
         tracks.id[new] = np.arange(self.next_id, self.next_id + len(new))
         self.next_id += len(new)

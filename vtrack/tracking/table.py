@@ -7,8 +7,10 @@ new track starts with, how they move with the camera -- in its own module:
   detected centres the centre measurement differences;
 - box_size (sizes.SizeColumns): s, Ps, mismatch_t, mismatch_sign, own, ref_p, ref_s, the
   box size filter's state, the own-size memory and the scale field's reference;
-- life (lifecycle.LifeColumns): origin, last_box, hitmask, standing, id, uid, the
-  lifecycle's record.
+- life (lifecycle.LifeColumns): origin, last_box, hitmask, standing, id, uid, dup_t,
+  seen, the lifecycle's record;
+- reid (reidentifier.ReidColumns): born, v_seen, colour, what re-identifies a track's
+  vehicle once it is lost.
 
 (The associator's fragment stage keeps its gap record apart, fragments.GapColumns.) The
 table reads and writes each column by its name (`tracks.x` is `tracks.centre.x`); `keep`,
@@ -28,6 +30,7 @@ from vtrack.tracking.columns import Columns
 from vtrack.tracking.filter_bank import CentreColumns
 from vtrack.tracking.lifecycle import LifeColumns
 from vtrack.tracking.measurements import HistoryColumns
+from vtrack.tracking.reidentifier import ReidColumns
 from vtrack.tracking.sizes import SizeColumns
 
 
@@ -39,16 +42,17 @@ class TrackTable:
     history: HistoryColumns
     box_size: SizeColumns
     life: LifeColumns
+    reid: ReidColumns
 
     @classmethod
     def empty(cls) -> TrackTable:
         """A table without tracks."""
         return cls(CentreColumns.empty(), HistoryColumns.empty(), SizeColumns.empty(),
-                   LifeColumns.empty())
+                   LifeColumns.empty(), ReidColumns.empty())
 
     def groups(self) -> list[Columns]:
         """The role groups, in field order."""
-        return [self.centre, self.history, self.box_size, self.life]
+        return [self.centre, self.history, self.box_size, self.life, self.reid]
 
     def __len__(self) -> int:
         return len(self.centre)

@@ -16,14 +16,16 @@ table (table.py) joins them:
 - the associator (associator.py): fragments (fragments.py; GapColumns gap_p, gap_t,
   gap_seen, gap_road, kept apart by the tracker), gating and assignment, shared blobs,
   re-acquisition; it changes nothing and returns its decisions;
-- the lifecycle (lifecycle.py; LifeColumns origin, last_box, hitmask, standing, id, uid):
-  initiator, confirmer, deleter;
+- the lifecycle (lifecycle.py; LifeColumns origin, last_box, hitmask, standing, id, uid,
+  dup_t, seen): initiator, confirmer, deleter;
+- the re-identifier (reidentifier.py; ReidColumns born, v_seen, colour): remembers the
+  vehicles lost in view and hands their ids to the tracks that continue them;
 - the reporter (reporter.py): which MOT rows are final, a state machine.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,6 +38,7 @@ from vtrack.tracking.fragments import GapColumns
 from vtrack.tracking.lifecycle import Confirmer, Deleter, Initiator, record_hits
 from vtrack.tracking.measurements import CentreMeasurement, HistoryColumns, detection_sigma
 from vtrack.tracking.provenance import whole_boxes
+from vtrack.tracking.reidentifier import ReidColumns, Reidentifier
 from vtrack.tracking.reporter import ON_COURSE_IOU, ROW_COLUMNS, RowReporter
 from vtrack.tracking.sizes import Sizes
 from vtrack.tracking.table import TrackTable
@@ -59,6 +62,9 @@ class FrameTracks:
     detection_of: np.ndarray   # (K,) index of the input detection used (-1 when coasted;
                                # a joined blob: its first piece)
     size_rates: np.ndarray     # (K, 2) d(w, h)/dt of the box, px/s
+    held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+                               # (M,) ids of vehicles lost in view that may come back
+                               # (reidentifier.py): their records stay open
 
 
 class Tracker:
@@ -79,6 +85,7 @@ class Tracker:
         self.associator = Associator(cfg, width, height)
         self.initiator = Initiator(cfg.box_candidates)
         self.confirmer = Confirmer(cfg, fps)
+        self.reidentifier = Reidentifier(cfg, width, height)
         self.deleter = Deleter(cfg, width, height)
         self.reporter = RowReporter(cfg.max_coast_seconds, width, height,
                                     self.bank.model.transition if cfg.smooth_coasted else None)
@@ -96,10 +103,11 @@ class Tracker:
 
     def step(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
              motion: np.ndarray | None = None, changed: ChangedShare | None = None,
-             seen: np.ndarray | None = None) -> FrameTracks:
+             seen: np.ndarray | None = None, colours: np.ndarray | None = None
+             ) -> FrameTracks:
         """predict, then update (see those)."""
         self.predict(t, motion)
-        return self.update(frame, t, centers, boxes, changed, seen)
+        return self.update(frame, t, centers, boxes, changed, seen, colours)
 
     def predict(self, t: float, motion: np.ndarray | None = None) -> np.ndarray:
         """Advance all tracks to time t (s); `motion` (2, 3) is the camera's, mapping the
@@ -115,6 +123,7 @@ class Tracker:
         if motion is not None and len(tracks) and not np.allclose(motion, _IDENTITY):
             tracks.warp(motion)
             self.gaps.warp(motion)
+            self.reidentifier.lost.warp(motion)
         growth = self.sizes.growth(tracks)   # from the velocities and scales before the step
         self.bank.predict(tracks, dt, coasting)
         self.sizes.predict(tracks, dt, growth)
@@ -122,13 +131,15 @@ class Tracker:
         return from_centre(tracks.x[conf, :2], tracks.size[conf])
 
     def update(self, frame: int, t: float, centers: np.ndarray, boxes: np.ndarray,
-               changed: ChangedShare | None = None, seen: np.ndarray | None = None
-               ) -> FrameTracks:
+               changed: ChangedShare | None = None, seen: np.ndarray | None = None,
+               colours: np.ndarray | None = None) -> FrameTracks:
         """Assimilate frame `frame`'s detections (centres (D, 2), boxes (D, 4)) into the
         tracks predicted to its time t. `changed`, when the detector has one, gives the share
         of any box (K, 4) that it saw change (vision/changed.py): the associator reads the
         gap between two pieces of a blob with it. `seen` (D,) marks the boxes an appearance
-        model drew: whole vehicles, which every role treats as whole (provenance.py)."""
+        model drew: whole vehicles, which every role treats as whole (provenance.py).
+        `colours` (D, reidentifier.SIGNATURE_SIZE), the boxes' colour signatures
+        (vision/colour.py), let a vehicle lost for seconds come back with its id."""
         centers = np.asarray(centers, dtype=float).reshape(-1, 2)
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
         whole_in = whole_boxes(seen, len(boxes))
@@ -152,20 +163,24 @@ class Tracker:
                                         a.whole[started])
         hit = np.zeros(len(tracks), dtype=bool)
         hit[a.tracks] = hit[new] = True
+        for idx, det in ((a.tracks, a.origin[a.detections]), (new, a.origin[started])):
+            self.reidentifier.observe(tracks, idx, None if colours is None else colours[det])
         tracks.seen[a.tracks[a.whole[a.detections]]] = True
         tracks.seen[new[a.whole[started]]] = True
         record_hits(tracks, hit, self.confirmer.window, self.cfg.stand_speed)
-        # delete (decide), confirm
+        # delete (decide), confirm: a new id, or the id of the lost vehicle it continues
         inside, alive = self.deleter.fate(tracks, t, a.duplicates, a.patient)
-        self.confirmer.confirm(tracks, hit, inside & alive)
+        ready = self.confirmer.ready(tracks, hit, inside & alive)
+        self.confirmer.confirm(tracks, ready, self.reidentifier.claim(tracks, ready, t))
         # report
         filtered = tracks.boxes(W, H)
         shown, on_course = self._shown(filtered, predicted, a.tracks,
                                        a.boxes[a.detections], whole)
         rows = self.reporter.rows(frame, t, tracks, shown, hit, on_course, inside, alive,
                                   prior_x, prior_P)
-        # delete (apply)
+        # delete (apply), remembering the vehicles lost in view
         keep = inside & alive
+        self.reidentifier.remember(tracks, ~keep, inside, t)
         self._delete(~keep)
         det_of = np.full(len(keep), -1)
         det_of[a.tracks], det_of[new] = a.origin[a.detections], a.origin[started]
@@ -196,7 +211,8 @@ class Tracker:
         return FrameTracks(ids=tracks.id[conf].copy(), boxes=boxes[conf], coasted=~hit[conf],
                            states=tracks.x[conf].copy(), covariances=tracks.P[conf].copy(),
                            innovations=nis[conf], rows=rows, detection_of=det_of[conf],
-                           size_rates=self.sizes.rates(tracks, conf))
+                           size_rates=self.sizes.rates(tracks, conf),
+                           held=self.reidentifier.held)
 
     def _assimilate(self, idx: np.ndarray, boxes: np.ndarray, t: float, split: np.ndarray,
                     whole_box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -220,7 +236,8 @@ class Tracker:
         var = np.repeat(detection_sigma(self.cfg, scale)[:, None] ** 2, 2, axis=1)
         new = TrackTable(centre=self.bank.prior(centers, scale),
                          history=HistoryColumns.new(len(boxes), t),
-                         box_size=self.sizes.new(boxes), life=self.initiator.new(boxes))
+                         box_size=self.sizes.new(boxes), life=self.initiator.new(boxes),
+                         reid=ReidColumns.new(len(boxes), t))
         self.bank.start(new.uid, new.x, var, scale)
         n_old = len(self.tracks)
         self.tracks.append(new)
