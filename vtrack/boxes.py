@@ -72,6 +72,11 @@ def edges(boxes: np.ndarray) -> np.ndarray:
     return np.concatenate([boxes[..., :2], boxes[..., :2] + boxes[..., 2:]], axis=-1)
 
 
+def from_edges(e: np.ndarray) -> np.ndarray:
+    """(..., 4) boxes x, y, w, h of edges x0, y0, x1, y1 (..., 4): the inverse of `edges`."""
+    return np.concatenate([e[..., :2], e[..., 2:] - e[..., :2]], axis=-1)
+
+
 def from_centre(centres: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     """(..., 4) boxes x, y, w, h of the given centres (..., 2) and sizes (..., 2)."""
     return np.concatenate([centres - sizes / 2, sizes], axis=-1)

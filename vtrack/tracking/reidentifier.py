@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Self
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from vtrack.boxes import on_border
+from vtrack.boxes import centre, from_edges, on_border, scale
 from vtrack.tracking.columns import Columns, warp_scale
 from vtrack.tracking.config import TrackerConfig
 
@@ -131,9 +131,8 @@ class Reidentifier:
         cfg, lost = self.cfg, self.lost
         if cfg.reid_seconds <= 0 or len(ready) == 0 or len(lost) == 0:
             return ids
-        o = tracks.origin[ready]
-        entered = on_border(np.hstack([o[:, :2], o[:, 2:] - o[:, :2]]), self.width,
-                            self.height, BORDER_PX).any(axis=(1, 2))
+        entered = on_border(from_edges(tracks.origin[ready]), self.width, self.height,
+                            BORDER_PX).any(axis=(1, 2))
         clear = np.flatnonzero(~entered)
         new = ready[clear]
         ok, cost = self._continues(tracks, new, t)
@@ -184,11 +183,9 @@ class Reidentifier:
                            & (t - seen >= cfg.max_coast_seconds - 1e-9))
         if len(k) == 0:
             return
-        box = tracks.last_box[k]
-        wh = box[:, 2:] - box[:, :2]
-        ended_now = LostColumns(tracks.id[k].copy(), seen[k].copy(),
-                                (box[:, :2] + box[:, 2:]) / 2, tracks.v_seen[k].copy(),
-                                np.sqrt(wh[:, 0] * wh[:, 1]), tracks.colour[k].copy())
+        box = from_edges(tracks.last_box[k])
+        ended_now = LostColumns(tracks.id[k].copy(), seen[k].copy(), centre(box),
+                                tracks.v_seen[k].copy(), scale(box), tracks.colour[k].copy())
         going = np.flatnonzero((tracks.id > 0) & ~ended)
         continued = self._continues(tracks, going, t, ended_now, sized=False)[0].any(axis=0)
         ended_now.keep(~continued)
